@@ -133,7 +133,7 @@ class WashoutFilter:
         return self._v
 
     def transfer_function(self) -> DiscreteTransferFunction:
-        """The discrete transfer function of one channel, ``p (z - 1) / ((p Ts + 1) z - 1)`` (3.79)."""
+        """One channel's discrete transfer function ``p (z-1) / ((p Ts + 1) z - 1)`` (3.79)."""
         g = 1.0 + self.pole * self.dt
         return DiscreteTransferFunction(
             num=(self.pole / g, -self.pole / g), den=(1.0, -1.0 / g), dt=self.dt
