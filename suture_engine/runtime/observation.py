@@ -1,0 +1,315 @@
+"""What skills receive each tick, and what they return.
+
+Skills see only what the real EndoBot measures (DESIGN section 3): encoder
+joint positions, joint velocities *estimated* from them (washout filter,
+thesis (3.78-3.79), (5.50)), the base force/torque sensor wrench, tool states,
+the simulation time and the geometry the scene declares. They never see the
+simulator's ground truth of the suture; that goes to the trace only, through
+:meth:`backends.base.Backend.ground_truth`.
+
+Backends return a :class:`Measurement` (raw sensor values, no velocity);
+the interpreter turns it into an :class:`Observation` by running the
+:class:`WashoutVelocityEstimator` on the encoder positions.
+
+Skills return a :class:`Command`: per robot a :class:`RobotCommand` holding a
+joint position setpoint, a joint velocity setpoint or joint torques, and a
+tool command. The interpreter's controller turns setpoints into torques
+(chapter 5 laws) before the backend applies them.
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    "N_JOINTS",
+    "Command",
+    "CommandMode",
+    "Measurement",
+    "Observation",
+    "RobotCommand",
+    "RobotMeasurement",
+    "RobotObservation",
+    "SceneGeometry",
+    "SkillStatus",
+    "StepResult",
+    "ToolCommand",
+    "ToolState",
+    "WashoutVelocityEstimator",
+]
+
+N_JOINTS = 4
+"""Joints of one EndoBot: yaw about x, pitch about y, roll about z, insertion along z."""
+
+FloatArray = NDArray[np.float64]
+
+
+def _frozen_array(values: object, size: int | None = None) -> FloatArray:
+    arr = np.array(values, dtype=np.float64, copy=True).reshape(-1)
+    if size is not None and arr.shape != (size,):
+        raise ValueError(f"expected {size} values, got {arr.shape[0]}")
+    arr.flags.writeable = False
+    return arr
+
+
+@dataclass(frozen=True)
+class ToolState:
+    """The measured state of one robot's tool.
+
+    Attributes:
+        kind: tool type ("grasper", "hook-grasper", "bent-grasper", "stitcher").
+        jaw_closed: whether the (first) jaw is closed.
+        jaw2_closed: whether the stitcher's second jaw is closed (False otherwise).
+        hook_extension: flexible-hook extension [m] (0 when retracted or absent).
+    """
+
+    kind: str = "grasper"
+    jaw_closed: bool = False
+    jaw2_closed: bool = False
+    hook_extension: float = 0.0
+
+
+@dataclass(frozen=True)
+class RobotMeasurement:
+    """Raw sensor values of one EndoBot, as a backend measures them.
+
+    Attributes:
+        q: encoder joint positions [rad, rad, rad, m].
+        base_wrench: base force/torque sensor (Fx, Fy, Fz [N], Mx, My, Mz [N*m]).
+        tool: the tool's measured state.
+        fault: True when a sensor reported a dropout this tick (held value).
+    """
+
+    q: FloatArray
+    base_wrench: FloatArray
+    tool: ToolState = field(default_factory=ToolState)
+    fault: bool = False
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "q", _frozen_array(self.q, N_JOINTS))
+        object.__setattr__(self, "base_wrench", _frozen_array(self.base_wrench, 6))
+
+
+@dataclass(frozen=True)
+class SceneGeometry:
+    """Geometry the scene declares (known a priori, not measured).
+
+    Attributes:
+        entry_point: stitch entry point in the world frame [m].
+        exit_point: stitch exit point in the world frame [m].
+        tissue_normal: unit normal of the tissue surface.
+        base_positions: each robot's base (RCM) position in the world frame [m].
+    """
+
+    entry_point: FloatArray = field(default_factory=lambda: _frozen_array([0.0, 0.0, 0.0]))
+    exit_point: FloatArray = field(default_factory=lambda: _frozen_array([0.0, 0.0, 0.0]))
+    tissue_normal: FloatArray = field(default_factory=lambda: _frozen_array([0.0, 0.0, 1.0]))
+    base_positions: Mapping[str, tuple[float, float, float]] = field(
+        default_factory=lambda: MappingProxyType({})
+    )
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "entry_point", _frozen_array(self.entry_point, 3))
+        object.__setattr__(self, "exit_point", _frozen_array(self.exit_point, 3))
+        object.__setattr__(self, "tissue_normal", _frozen_array(self.tissue_normal, 3))
+        object.__setattr__(self, "base_positions", MappingProxyType(dict(self.base_positions)))
+
+
+@dataclass(frozen=True)
+class Measurement:
+    """Everything a backend measured at one tick.
+
+    Attributes:
+        tick: tick index since reset.
+        t: simulation time [s].
+        robots: per-robot raw measurements, keyed by robot name ("endobot_1").
+    """
+
+    tick: int
+    t: float
+    robots: Mapping[str, RobotMeasurement]
+
+
+@dataclass(frozen=True)
+class RobotObservation:
+    """What a skill knows about one EndoBot.
+
+    Attributes:
+        q: encoder joint positions [rad, rad, rad, m].
+        qd: estimated joint velocities [rad/s, rad/s, rad/s, m/s] (washout filter (3.79)).
+        base_wrench: base force/torque sensor (Fx, Fy, Fz [N], Mx, My, Mz [N*m]).
+        tool: the tool's measured state.
+    """
+
+    q: FloatArray
+    qd: FloatArray
+    base_wrench: FloatArray
+    tool: ToolState
+
+
+@dataclass(frozen=True)
+class Observation:
+    """The observation handed to skills each tick; holds no suture ground truth.
+
+    Attributes:
+        tick: tick index since reset.
+        t: simulation time [s].
+        robots: per-robot observations keyed by robot name.
+        scene: the declared scene geometry.
+    """
+
+    tick: int
+    t: float
+    robots: Mapping[str, RobotObservation]
+    scene: SceneGeometry
+
+
+class CommandMode(enum.Enum):
+    """How a :class:`RobotCommand` drives the joints."""
+
+    POSITION = "position"
+    """Track ``q`` (and feed forward ``qd`` if given) with the state's joint controller."""
+    VELOCITY = "velocity"
+    """Track ``qd``; the position setpoint integrates it."""
+    TORQUE = "torque"
+    """Apply ``tau`` directly [N*m, N*m, N*m, N]."""
+
+
+@dataclass(frozen=True)
+class ToolCommand:
+    """A tool command; ``None`` fields leave the tool as it is.
+
+    Attributes:
+        jaw_closed: close (True) or open (False) the (first) jaw.
+        jaw2_closed: close or open the stitcher's second jaw.
+        hook_extension: flexible-hook extension setpoint [m].
+    """
+
+    jaw_closed: bool | None = None
+    jaw2_closed: bool | None = None
+    hook_extension: float | None = None
+
+
+@dataclass(frozen=True)
+class RobotCommand:
+    """One robot's command for one tick.
+
+    Attributes:
+        mode: which fields drive the joints.
+        q: joint position setpoint [rad, rad, rad, m] (POSITION, VELOCITY).
+        qd: joint velocity setpoint / feed-forward [rad/s, ..., m/s].
+        tau: joint torques [N*m, N*m, N*m, N] (TORQUE; after the controller, always).
+        tool: tool command.
+    """
+
+    mode: CommandMode
+    q: FloatArray | None = None
+    qd: FloatArray | None = None
+    tau: FloatArray | None = None
+    tool: ToolCommand | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("q", "qd", "tau"):
+            value = getattr(self, name)
+            if value is not None:
+                object.__setattr__(self, name, _frozen_array(value, N_JOINTS))
+        if self.mode is CommandMode.POSITION and self.q is None:
+            raise ValueError("a POSITION command needs q")
+        if self.mode is CommandMode.VELOCITY and self.qd is None:
+            raise ValueError("a VELOCITY command needs qd")
+        if self.mode is CommandMode.TORQUE and self.tau is None:
+            raise ValueError("a TORQUE command needs tau")
+
+    @classmethod
+    def position(
+        cls, q: object, qd: object | None = None, tool: ToolCommand | None = None
+    ) -> RobotCommand:
+        """A joint position setpoint [rad, rad, rad, m], with optional velocity feed-forward."""
+        return cls(CommandMode.POSITION, q=_frozen_array(q), qd=None if qd is None else qd, tool=tool)
+
+    @classmethod
+    def torque(cls, tau: object, tool: ToolCommand | None = None) -> RobotCommand:
+        """Joint torques [N*m, N*m, N*m, N]."""
+        return cls(CommandMode.TORQUE, tau=_frozen_array(tau), tool=tool)
+
+
+@dataclass(frozen=True)
+class Command:
+    """All robots' commands for one tick; robots not named keep the Lock law (4.44).
+
+    Attributes:
+        robots: per-robot commands keyed by robot name.
+    """
+
+    robots: Mapping[str, RobotCommand]
+
+
+class SkillStatus(enum.Enum):
+    """What a skill reports after a tick."""
+
+    RUNNING = "running"
+    """The activity continues; no event."""
+    SUCCESS = "success"
+    """The activity is over: the planned event e_i (thesis Fig. 4.25)."""
+    FAILURE = "failure"
+    """The skill failed: an unpredictable event, to the step's NOT-BE state."""
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """A skill's answer for one tick.
+
+    Attributes:
+        command: the command for this tick.
+        status: running, success (planned event) or failure (unpredictable event).
+        message: why it failed (empty otherwise).
+    """
+
+    command: Command
+    status: SkillStatus = SkillStatus.RUNNING
+    message: str = ""
+
+
+class WashoutVelocityEstimator:
+    """Joint velocity from encoder positions by the washout filter (3.78-3.79), (5.50).
+
+    The continuous filter is ``v(s) = s * wc / (s + wc) * q(s)``; discretised by
+    backward Euler at the control period ``dt`` [s]:
+    ``v_k = (v_{k-1} + wc * (q_k - q_{k-1})) / (1 + wc * dt)``.
+
+    Args:
+        n: number of joints.
+        dt: sample period [s].
+        cutoff_hz: washout cut-off frequency wc / (2 pi) [Hz].
+    """
+
+    def __init__(self, n: int, dt: float, cutoff_hz: float = 50.0) -> None:
+        if dt <= 0.0 or cutoff_hz <= 0.0:
+            raise ValueError("dt and cutoff_hz must be positive")
+        self._wc = 2.0 * np.pi * cutoff_hz
+        self._den = 1.0 + self._wc * dt
+        self._q_prev: FloatArray | None = None
+        self._v = np.zeros(n)
+
+    def reset(self) -> None:
+        """Forget the history; the next sample gives zero velocity."""
+        self._q_prev = None
+        self._v[:] = 0.0
+
+    def update(self, q: FloatArray) -> FloatArray:
+        """Feed one encoder sample [rad or m]; return the velocity estimate (a copy)."""
+        if self._q_prev is None:
+            self._q_prev = np.array(q, dtype=np.float64)
+            self._v[:] = 0.0
+        else:
+            self._v = (self._v + self._wc * (q - self._q_prev)) / self._den
+            self._q_prev[:] = q
+        out = self._v.copy()
+        out.flags.writeable = False
+        return out
