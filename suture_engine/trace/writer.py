@@ -1,0 +1,301 @@
+"""Deterministic, crash-safe MCAP trace writer.
+
+:class:`TraceWriter` writes one run's trace: JSON messages on the channels of
+:mod:`suture_engine.trace.channels`, in compressed MCAP chunks of bounded size.
+
+- **Time** is simulation time in nanoseconds (the MCAP log and publish time).
+- **Deterministic**: the same messages in the same order give a byte-identical
+  file. Nothing depends on the wall clock, the host or the mcap library version
+  (the header names suture-engine, not the library); JSON keys are sorted and
+  floats use the shortest round-trip form. Wall-clock fields (the QP solve
+  time) are dropped unless ``include_wall_clock=True``.
+- **Crash-safe**: each finished chunk is written, flushed and fsync'ed at once,
+  and a chunk is also closed every ``flush_interval_ns`` of simulation time, so a
+  process killed with SIGKILL leaves a file that
+  :class:`~suture_engine.trace.reader.TraceReader` reads up to its last flush.
+
+Example:
+    >>> with TraceWriter(path, TraceMeta("demo", seed=1, control_rate_hz=1000.0)) as w:
+    ...     w.write("/joint_state/left", 1_000_000, {"position": q, "velocity": dq})
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any, Literal
+
+from suture_engine import __version__
+from suture_engine.trace import channels, codec
+from suture_engine.trace.errors import TraceIOError, TraceMessageError
+
+__all__ = ["LIBRARY_PREFIX", "TraceMeta", "TraceWriter"]
+
+LIBRARY_PREFIX = "suture-engine/"
+"""The MCAP header's ``library`` field starts with this; the reader checks it."""
+
+Compression = Literal["zstd", "lz4", "none"]
+
+
+@dataclass(frozen=True)
+class TraceMeta:
+    """What the ``/meta`` channel records (no wall-clock data).
+
+    Attributes:
+        procedure: the procedure's name.
+        seed: the run's random seed.
+        control_rate_hz: the control rate [Hz].
+        params: the procedure parameters as run (JSON-like).
+        robots: the robot names.
+        backend: the backend name.
+        engine_version: the suture-engine version.
+        extra: more JSON-like fields to record.
+    """
+
+    procedure: str
+    seed: int
+    control_rate_hz: float
+    params: Mapping[str, Any] = field(default_factory=dict)
+    robots: tuple[str, ...] = ()
+    backend: str | None = None
+    engine_version: str = __version__
+    extra: Mapping[str, Any] = field(default_factory=dict)
+
+    def to_message(self) -> dict[str, Any]:
+        """The ``/meta`` message."""
+        message: dict[str, Any] = dict(self.extra)
+        message.update(
+            procedure=self.procedure,
+            seed=int(self.seed),
+            control_rate_hz=float(self.control_rate_hz),
+            params=dict(self.params),
+            robots=list(self.robots),
+            engine_version=self.engine_version,
+        )
+        if self.backend is not None:
+            message["backend"] = self.backend
+        return message
+
+
+class _SyncingStream:
+    """A write-through wrapper that notes when the mcap writer emitted bytes."""
+
+    def __init__(self, raw: IO[bytes]) -> None:
+        self.raw = raw
+        self.dirty = False
+
+    def write(self, data: bytes) -> int:
+        if data:
+            self.dirty = True
+        return self.raw.write(data)
+
+    def tell(self) -> int:
+        return self.raw.tell()
+
+    def flush(self) -> None:
+        self.raw.flush()
+
+    def close(self) -> None:
+        self.raw.close()
+
+
+class TraceWriter:
+    """Writes a trace to an MCAP file.
+
+    Args:
+        path: the output file (created or overwritten).
+        meta: the run metadata, written on ``/meta`` at t = 0.
+        compression: chunk compression: ``"zstd"`` (default), ``"lz4"`` or ``"none"``.
+        chunk_size: a chunk is closed once its uncompressed size exceeds this [byte].
+        flush_interval_ns: a chunk is also closed when this much simulation time has
+            passed since the last flush [ns]; 0 disables it.
+        fsync: fsync the file at every flush (crash safety against power loss too).
+        include_wall_clock: keep wall-clock fields (breaks byte-identical traces).
+        validate: check every message against its channel's JSON schema (slow; tests).
+
+    Raises:
+        TraceIOError: the file cannot be created.
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        meta: TraceMeta,
+        *,
+        compression: Compression = "zstd",
+        chunk_size: int = 256 * 1024,
+        flush_interval_ns: int = 1_000_000_000,
+        fsync: bool = True,
+        include_wall_clock: bool = False,
+        validate: bool = False,
+    ) -> None:
+        from mcap.writer import CompressionType, Writer
+
+        if compression not in ("zstd", "lz4", "none"):
+            raise ValueError(f"compression must be zstd, lz4 or none, not {compression!r}")
+        if chunk_size <= 0:
+            raise ValueError(f"chunk_size must be positive, not {chunk_size}")
+        self.path = Path(path)
+        self._fsync = fsync
+        self._include_wall_clock = include_wall_clock
+        self._validate = validate
+        self._flush_interval_ns = int(flush_interval_ns)
+        try:
+            raw = open(self.path, "wb")
+        except OSError as exc:
+            raise TraceIOError(str(self.path), f"cannot create trace: {exc.strerror}") from exc
+        self._stream = _SyncingStream(raw)
+        kind = {
+            "zstd": CompressionType.ZSTD,
+            "lz4": CompressionType.LZ4,
+            "none": CompressionType.NONE,
+        }[compression]
+        self._mcap = Writer(self._stream, chunk_size=chunk_size, compression=kind)  # type: ignore[arg-type]
+        self._schema_ids: dict[str, int] = {}
+        self._channel_ids: dict[str, tuple[int, channels.ChannelSpec]] = {}
+        self._closed = False
+        self._last_time_ns = 0
+        self._last_flush_ns = 0
+        self._pending = 0
+        self.message_count = 0
+        self.last_durable_ns: int | None = None
+        """Simulation time of the last message known to be on disk [ns]."""
+        self._mcap.start(profile="", library=LIBRARY_PREFIX + meta.engine_version)
+        self._sync()
+        self.write(channels.META, 0, meta.to_message())
+
+    # -- writing ----------------------------------------------------------------------------
+
+    def write(self, topic: str, time_ns: int, message: Mapping[str, Any]) -> None:
+        """Writes one message.
+
+        Args:
+            topic: a concrete topic of the catalogue (``/joint_state/left``).
+            time_ns: simulation time [ns]; must not decrease.
+            message: the message, a JSON-like mapping that matches the channel's schema.
+
+        Raises:
+            UnknownChannelError: the topic is not in the catalogue.
+            TraceMessageError: the message cannot be encoded, fails its schema
+                (with ``validate=True``), its time goes backwards, or the writer is closed.
+            TraceIOError: the disk write failed.
+        """
+        if self._closed:
+            raise TraceMessageError(str(self.path), topic, "the writer is closed")
+        time_ns = int(time_ns)
+        if time_ns < self._last_time_ns:
+            raise TraceMessageError(
+                str(self.path),
+                topic,
+                f"time {time_ns} ns is before the previous message's {self._last_time_ns} ns",
+            )
+        entry = self._channel_ids.get(topic)
+        if entry is None:
+            entry = self._register(topic)
+        channel_id, spec = entry
+        if spec.wall_clock_fields and not self._include_wall_clock:
+            message = {k: v for k, v in message.items() if k not in spec.wall_clock_fields}
+        try:
+            data = codec.encode(message)
+        except (TypeError, ValueError) as exc:
+            raise TraceMessageError(str(self.path), topic, f"cannot encode: {exc}") from exc
+        if self._validate:
+            self._check_schema(topic, spec, data)
+        self._last_time_ns = time_ns
+        try:
+            self._mcap.add_message(
+                channel_id, log_time=time_ns, data=data, publish_time=time_ns, sequence=0
+            )
+            self.message_count += 1
+            self._pending += 1
+            if self._stream.dirty:  # a chunk was finished: make it durable
+                self._pending = 0
+                self._sync()
+            elif (
+                self._flush_interval_ns > 0
+                and time_ns - self._last_flush_ns >= self._flush_interval_ns
+            ):
+                self.flush()
+        except OSError as exc:
+            raise TraceIOError(str(self.path), f"write failed: {exc.strerror}") from exc
+
+    def flush(self) -> None:
+        """Closes the chunk in progress and makes everything written so far durable.
+
+        Raises:
+            TraceIOError: the disk write failed.
+        """
+        if self._closed:
+            return
+        try:
+            self._mcap.flush()
+            self._pending = 0
+            self._sync()
+        except OSError as exc:
+            raise TraceIOError(str(self.path), f"flush failed: {exc.strerror}") from exc
+
+    def close(self) -> None:
+        """Writes the summary and footer and closes the file. Idempotent.
+
+        Raises:
+            TraceIOError: the disk write failed.
+        """
+        if self._closed:
+            return
+        self._closed = True
+        try:
+            self._mcap.finish()
+            self._stream.flush()
+            if self._fsync:
+                os.fsync(self._stream.raw.fileno())
+        except OSError as exc:
+            raise TraceIOError(str(self.path), f"close failed: {exc.strerror}") from exc
+        finally:
+            self._stream.close()
+        self.last_durable_ns = self._last_time_ns
+
+    def __enter__(self) -> TraceWriter:
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        self.close()
+
+    # -- internals --------------------------------------------------------------------------
+
+    def _register(self, topic: str) -> tuple[int, channels.ChannelSpec]:
+        spec = channels.spec_for(topic)
+        schema_id = self._schema_ids.get(spec.schema_name)
+        if schema_id is None:
+            schema_id = self._mcap.register_schema(
+                name=spec.schema_name, encoding="jsonschema", data=channels.schema_bytes(spec)
+            )
+            self._schema_ids[spec.schema_name] = schema_id
+        channel_id = self._mcap.register_channel(
+            topic=topic, message_encoding="json", schema_id=schema_id
+        )
+        self._channel_ids[topic] = (channel_id, spec)
+        if self._stream.dirty:  # registering closed a chunk: sync it before the message
+            self._sync()
+        return channel_id, spec
+
+    def _sync(self) -> None:
+        """Flushes the file (and fsyncs it) after the mcap writer emitted bytes."""
+        self._stream.flush()
+        if self._fsync:
+            os.fsync(self._stream.raw.fileno())
+        self._stream.dirty = False
+        self._last_flush_ns = self._last_time_ns
+        if self.message_count and self._pending == 0:
+            self.last_durable_ns = self._last_time_ns
+
+    def _check_schema(self, topic: str, spec: channels.ChannelSpec, data: bytes) -> None:
+        import jsonschema
+
+        try:
+            jsonschema.validate(codec.decode(data), spec.schema)
+        except jsonschema.ValidationError as exc:
+            raise TraceMessageError(
+                str(self.path), topic, f"does not match {spec.schema_name}: {exc.message}"
+            ) from exc
