@@ -51,6 +51,7 @@ Dimension = tuple[int, int, int, int]
 
 _DIMLESS: Dimension = (0, 0, 0, 0)
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_PATTERN = rf"^\s*{_NUMBER}\s*[A-Za-zµ°%].*$"
 _QUANTITY_RE = re.compile(rf"^\s*({_NUMBER})\s*(.*?)\s*$")
 _FACTOR_RE = re.compile(r"([A-Za-zµ°%]+)(?:(?:\^|\*\*)([-+]?\d+))?")
 
@@ -232,6 +233,59 @@ class Unit:
     def dim(self) -> Dimension:
         """The dimension of :attr:`unit`."""
         return parse_unit(self.unit)[1]
+
+    def convert(self, value: Any) -> Any:
+        """Convert a written quantity (or a sequence of them) to SI floats.
+
+        Strings such as ``"20 mm"`` and :class:`Quantity` values are checked
+        against this unit's dimension; bare numbers are taken as SI already.
+        Anything else is returned unchanged for pydantic to reject.
+
+        Raises:
+            pydantic_core.PydanticCustomError: ``unit_mismatch`` (wrong dimension or
+                unknown unit).
+        """
+        if isinstance(value, (list, tuple)):
+            return type(value)(self._convert_one(v) for v in value)
+        return self._convert_one(value)
+
+    def _convert_one(self, value: Any) -> Any:
+        from pydantic_core import PydanticCustomError
+
+        if isinstance(value, str):
+            try:
+                value = parse_quantity(value)
+            except UnitError as exc:
+                raise PydanticCustomError("unit_mismatch", "{msg}", {"msg": exc.message}) from exc
+        if isinstance(value, Quantity):
+            if value.dim != self.dim:
+                raise PydanticCustomError(
+                    "unit_mismatch",
+                    "expected {expected} (unit {unit}), found {found}",
+                    {
+                        "expected": dimension_name(self.dim),
+                        "unit": self.unit,
+                        "found": dimension_name(value.dim),
+                    },
+                )
+            return value.value
+        return value
+
+    def __get_pydantic_core_schema__(self, source: Any, handler: Any) -> Any:
+        from pydantic_core import core_schema
+
+        one = {"anyOf": [{"type": "number"}, {"type": "string", "pattern": _PATTERN}]}
+        origin = getattr(source, "__origin__", None)
+        input_schema: dict[str, Any] = (
+            {"type": "array", "items": one} if origin in (tuple, list) else one
+        )
+        return core_schema.no_info_before_validator_function(
+            self.convert,
+            handler(source),
+            json_schema_input_schema=core_schema.any_schema(
+                metadata={"pydantic_js_functions": [lambda _s, _h: input_schema]}
+            ),
+        )
 
 
 Length = Annotated[float, Unit("m")]

@@ -1,0 +1,173 @@
+"""The procedure language's document models (pydantic, ``extra="forbid"``).
+
+A procedure is a YAML state machine of parameterised skills (DESIGN section 4,
+thesis 4.6). These models describe the document as written; quantities are
+converted to SI when the models are validated. Skill parameters under
+``with`` are validated separately against each skill's own model, and a
+``use:`` state's ``with`` against the sub-procedure's ``params``.
+
+Example::
+
+    procedure: square-knot
+    version: "1"
+    scene: scenes/bench.yaml
+    params:
+      algorithm: {type: int, default: 2, choices: [1, 2, 3]}
+    roles: {stitcher: endobot_1, grasper: endobot_2}
+    initial: first
+    states:
+      first:
+        use: knot-algorithm-2.yaml
+        on: {done: second, failed: {retry: 2, then: lock}}
+      second:
+        use: knot-algorithm-2.yaml
+        with: {mirror: true}
+        on: {done: finished}
+      finished: {outcome: succeeded}
+"""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+from suture_engine.language.units import Angle, Duration, Force, Position
+
+__all__ = [
+    "MAX_RETRY",
+    "OUTCOMES",
+    "FailurePolicy",
+    "Invariant",
+    "ParamSpec",
+    "ProcedureDocument",
+    "StateDocument",
+    "Workspace",
+]
+
+MAX_RETRY = 10
+"""The largest retry count a failure policy may give."""
+
+OUTCOMES = ("succeeded", "failed", "aborted")
+"""The outcomes a terminal state may carry."""
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+
+
+class ParamSpec(_Model):
+    """A typed procedure parameter.
+
+    ``type: quantity`` needs a ``unit`` (``mm``, ``deg``, ``N``, ``N*s/m``), which
+    fixes the dimension; values are stored in SI. ``min``/``max`` are inclusive
+    bounds, ``choices`` the allowed values.
+    """
+
+    type: Literal["bool", "int", "float", "str", "quantity"]
+    """The parameter's type."""
+    unit: str | None = None
+    """The unit that fixes a quantity's dimension."""
+    default: Any = None
+    """Default value (a quantity is written with its unit)."""
+    min: Any = None
+    """Inclusive lower bound."""
+    max: Any = None
+    """Inclusive upper bound."""
+    choices: list[Any] | None = None
+    """Allowed values."""
+    description: str = ""
+    """Free text."""
+
+
+class FailurePolicy(_Model):
+    """What to do on a failure event: retry the previous step, then lock or abort.
+
+    The thesis' unpredictable-event handling (4.6, Figs. 4.22-4.25): the
+    NOT-BE state of a step retries the previous step up to ``retry`` times
+    (e-hat_{i-1}), then locks and waits for the operator or aborts.
+    """
+
+    retry: int | str = 0
+    """How many times to retry the previous step (0-10). Anything unbounded
+    (``forever``, a negative number) is a problem."""
+    then: Literal["lock", "abort"] = "lock"
+    """After the retries: ``lock`` (hold and wait for the operator) or ``abort``."""
+
+
+class Workspace(_Model):
+    """An axis-aligned box the tool tips must stay in (world frame)."""
+
+    min: Position
+    """Lower corner [m]."""
+    max: Position
+    """Upper corner [m]."""
+
+
+class Invariant(_Model):
+    """The invariant Inv of a state (4.42-4.45), watched by the safety monitor."""
+
+    max_tension: Force | None = Field(default=None, gt=0.0)
+    """Suture tension bound [N]; may not exceed the scene's tension limit."""
+    max_force: Force | None = Field(default=None, gt=0.0)
+    """Bound of the base force-sensor magnitude [N]."""
+    singularity_margin: Angle | None = Field(default=None, ge=0.0)
+    """Least distance of the pitch q2 from +-90 deg (3.23) [rad]."""
+    workspace: Workspace | None = None
+    """Box the tool tips must stay in."""
+
+
+class StateDocument(_Model):
+    """One state: a skill (``skill`` + ``with``), a sub-procedure (``use`` + ``with``),
+    or a terminal state (``outcome``)."""
+
+    description: str = ""
+    """Free text."""
+    skill: str | None = None
+    """The registered skill this state runs."""
+    use: str | None = None
+    """A sub-procedure file, relative to this file."""
+    with_: dict[str, Any] = Field(default_factory=dict, alias="with")
+    """Parameters of the skill or sub-procedure (quantities with units, ``${...}``)."""
+    invariant: Invariant | None = None
+    """The state's invariant."""
+    timeout: Duration | None = Field(default=None, gt=0.0)
+    """Time after which the state raises the ``timeout`` event [s]."""
+    on: dict[str, str | FailurePolicy] = Field(default_factory=dict)
+    """Event -> next state, or a failure policy."""
+    outcome: Literal["succeeded", "failed", "aborted"] | None = None
+    """Marks a terminal state and the outcome it ends the run with."""
+
+    @model_validator(mode="after")
+    def _one_kind(self) -> StateDocument:
+        kinds = [k for k in ("skill", "use", "outcome") if getattr(self, k) is not None]
+        if len(kinds) != 1:
+            found = " and ".join(kinds) if kinds else "none of them"
+            raise ValueError(f"a state has exactly one of skill, use, outcome; found {found}")
+        if self.outcome is not None and (self.on or self.with_):
+            raise ValueError("a terminal state (outcome) has no `on` and no `with`")
+        return self
+
+
+class ProcedureDocument(_Model):
+    """A procedure file."""
+
+    procedure: str
+    """The procedure's name."""
+    version: str | int | float = "1"
+    """The procedure's version."""
+    description: str = ""
+    """Free text."""
+    scene: str | dict[str, Any] | None = None
+    """A scene file (relative to this file) or an inline scene; sub-procedures
+    may leave it out and inherit their caller's."""
+    includes_outside: bool = False
+    """Allow ``use:`` and ``scene`` paths that leave this file's folder tree."""
+    params: dict[str, ParamSpec] = Field(default_factory=dict)
+    """Typed parameters."""
+    roles: dict[str, str] = Field(default_factory=dict)
+    """Role -> robot name of the scene (``stitcher: endobot_1``)."""
+    initial: str
+    """The first state."""
+    states: dict[str, StateDocument]
+    """The states by name."""

@@ -1,0 +1,230 @@
+"""The scene: two EndoBots, the tissue with its wound, the suture, physics.
+
+Quantities are SI after load. The scene derives the procedure's tension limit
+from the weaker of the suture's knot-pull strength (thesis Table 7.1) and the
+tissue's pull-out tension (Table 7.2), times a safety factor.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from suture_engine.language.units import Angle, Damping, Duration, Force, Length, Mass, Position
+from suture_engine.language.units import Stiffness as StiffnessUnit
+
+__all__ = [
+    "GRAVITY",
+    "KNOT_PULL_STRENGTH_KG",
+    "SUTURE_DIAMETER_MM",
+    "TISSUE_PULLOUT_N",
+    "ForcePlant",
+    "JointLimits",
+    "Physics",
+    "Pose",
+    "RobotSpec",
+    "Scene",
+    "Suture",
+    "Tissue",
+    "ToolType",
+    "Wound",
+]
+
+GRAVITY = 9.80665
+"""Standard gravity [m/s^2], converts the table's kilograms-force to newtons."""
+
+SUTURE_DIAMETER_MM: dict[str, tuple[float, float]] = {
+    "0": (0.35, 0.399),
+    "2-0": (0.30, 0.339),
+    "3-0": (0.20, 0.249),
+    "4-0": (0.15, 0.199),
+    "5-0": (0.10, 0.149),
+    "6-0": (0.07, 0.099),
+}
+"""USP size -> (min, max) diameter [mm], thesis Table 7.1."""
+
+KNOT_PULL_STRENGTH_KG: dict[str, float] = {
+    "0": 2.16,
+    "2-0": 1.44,
+    "3-0": 0.96,
+    "4-0": 0.60,
+    "5-0": 0.40,
+    "6-0": 0.20,
+}
+"""USP size -> knot-pull tensile strength [kgf], thesis Table 7.1."""
+
+TISSUE_PULLOUT_N: dict[str, float] = {
+    "fat": 1.96,
+    "muscle": 12.45,
+    "skin": 17.85,
+    "fascia": 36.98,
+}
+"""Tissue type -> suture pull-out tension [N], thesis Table 7.2."""
+
+ToolType = Literal["grasper", "hook-grasper", "bent-tip-grasper", "stitcher"]
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Pose(_Model):
+    """A base pose in the world frame."""
+
+    position: Position = (0.0, 0.0, 0.0)
+    """Origin of the robot's base frame = its remote centre of motion [m]."""
+    rpy: tuple[Angle, Angle, Angle] = (0.0, 0.0, 0.0)
+    """Roll, pitch, yaw of the base frame (fixed axes x, y, z) [rad]."""
+
+
+class JointLimits(_Model):
+    """Joint limits of an EndoBot: yaw q1, pitch q2, roll q3 [rad], insertion q4 [m]."""
+
+    yaw: tuple[Angle, Angle] = (-math.radians(70), math.radians(70))
+    """q1 range, rotation about x [rad]."""
+    pitch: tuple[Angle, Angle] = (-math.radians(70), math.radians(70))
+    """q2 range, rotation about y [rad]."""
+    roll: tuple[Angle, Angle] = (-math.pi, math.pi)
+    """q3 range, rotation about the tool axis z [rad]."""
+    insertion: tuple[Length, Length] = (0.02, 0.30)
+    """q4 range, extension along the tool axis [m]."""
+
+    @model_validator(mode="after")
+    def _ordered(self) -> JointLimits:
+        for name in ("yaw", "pitch", "roll", "insertion"):
+            lo, hi = getattr(self, name)
+            if lo >= hi:
+                raise ValueError(f"{name}: lower limit {lo:g} must be below upper limit {hi:g}")
+        return self
+
+
+class RobotSpec(_Model):
+    """One EndoBot: base pose, joint limits and the tool it carries."""
+
+    base: Pose = Pose()
+    """Base pose; the base origin is the RCM (incision point)."""
+    joint_limits: JointLimits = JointLimits()
+    """Joint limits."""
+    tool: ToolType
+    """The tool: ``grasper``, ``hook-grasper`` (flexible hook, 4.4.2),
+    ``bent-tip-grasper`` (algorithm 3) or ``stitcher`` (two jaws passing the needle)."""
+
+
+class Wound(_Model):
+    """The wound line on the tissue surface."""
+
+    start: Position
+    """One end of the wound [m]."""
+    end: Position
+    """The other end of the wound [m]."""
+
+
+class Tissue(_Model):
+    """The tissue: its type, surface normal, wound and named points."""
+
+    type: Literal["fat", "muscle", "skin", "fascia"]
+    """Tissue type; gives the suture pull-out tension (Table 7.2)."""
+    normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    """Outward surface normal in the world frame [-]."""
+    wound: Wound
+    """The wound line [m]."""
+    points: dict[str, Position] = Field(default_factory=dict)
+    """Named points (entry and exit points of the bites, knot site) [m]."""
+    stiffness: StiffnessUnit = Field(default=200.0, gt=0.0)
+    """Tissue stiffness normal to the surface [N/m]."""
+
+    @property
+    def pullout_tension(self) -> float:
+        """The suture pull-out tension of this tissue [N] (Table 7.2)."""
+        return TISSUE_PULLOUT_N[self.type]
+
+    @field_validator("normal")
+    @classmethod
+    def _nonzero(cls, v: tuple[float, float, float]) -> tuple[float, float, float]:
+        if math.hypot(*v) < 1e-12:
+            raise ValueError("the normal must be non-zero")
+        return v
+
+
+class Suture(_Model):
+    """The suture: USP size and length."""
+
+    usp: Literal["0", "2-0", "3-0", "4-0", "5-0", "6-0"]
+    """USP size (Table 7.1)."""
+    length: Length = Field(gt=0.0)
+    """Length of the suture [m]."""
+
+    @field_validator("usp", mode="before")
+    @classmethod
+    def _usp_text(cls, v: object) -> object:
+        return str(v) if isinstance(v, int) and not isinstance(v, bool) else v
+
+    @property
+    def diameter(self) -> float:
+        """Nominal diameter [m]: the middle of Table 7.1's range."""
+        lo, hi = SUTURE_DIAMETER_MM[self.usp]
+        return 0.5 * (lo + hi) * 1e-3
+
+    @property
+    def knot_pull_strength(self) -> float:
+        """Knot-pull tensile strength [N] (Table 7.1, kgf times standard gravity)."""
+        return KNOT_PULL_STRENGTH_KG[self.usp] * GRAVITY
+
+
+class ForcePlant(_Model):
+    """The mass-damper-spring seen by the force controller (7.23-7.25)."""
+
+    mass: Mass = Field(default=1.0, gt=0.0)
+    """m [kg]."""
+    damping: Damping = Field(default=1.0, ge=0.0)
+    """b [N*s/m]."""
+    stiffness: StiffnessUnit = Field(default=10.0, gt=0.0)
+    """k, environment (suture and tissue) stiffness [N/m]."""
+
+
+class Physics(_Model):
+    """Simulation and sensor settings."""
+
+    timestep: Duration = Field(default=1e-3, gt=0.0, le=0.01)
+    """Physics and control period [s] (1 kHz by default)."""
+    measurement_delay: Duration = Field(default=0.0, ge=0.0, le=1.0)
+    """Delay of the force measurement [s]; used by the force-gain check (7.41, 7.43)."""
+    force_noise: Force = Field(default=0.0, ge=0.0)
+    """Standard deviation of the base force sensor's noise [N]."""
+    force_plant: ForcePlant = ForcePlant()
+    """The force-control plant."""
+    seed: int = 0
+    """Random seed."""
+
+
+class Scene(_Model):
+    """The scene of a procedure."""
+
+    name: str = ""
+    """A short name."""
+    description: str = ""
+    """Free text."""
+    robots: dict[str, RobotSpec]
+    """The two EndoBots by name (``endobot_1``, ``endobot_2``)."""
+    tissue: Tissue
+    """The tissue."""
+    suture: Suture
+    """The suture."""
+    physics: Physics = Physics()
+    """Physics and sensor settings."""
+    safety_factor: float = Field(default=0.5, gt=0.0, le=1.0)
+    """Fraction of the weaker of suture strength and pull-out allowed [-]."""
+
+    @field_validator("robots")
+    @classmethod
+    def _two(cls, v: dict[str, RobotSpec]) -> dict[str, RobotSpec]:
+        if len(v) != 2:
+            raise ValueError(f"a scene has exactly two EndoBots, found {len(v)}")
+        return v
+
+    @property
+    def tension_limit(self) -> float:
+        """min(knot-pull strength, pull-out tension) * safety factor [N]."""
+        return min(self.suture.knot_pull_strength, self.tissue.pullout_tension) * self.safety_factor
