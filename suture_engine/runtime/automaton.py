@@ -282,9 +282,8 @@ class Automaton:
             dest = f"autonomous/{j}"
             m.add_transition("start", "idle", dest, conditions=cond, before=self._before_enter)
             for s in steps:
-                m.add_transition(
-                    "retry", f"autonomous/{notbe(s)}", dest, conditions=cond, before=self._before_enter
-                )
+                src = f"autonomous/{notbe(s)}"
+                m.add_transition("retry", src, dest, conditions=cond, before=self._before_enter)
             for src in ["lock", "manual"] + [f"autonomous/{notbe(s)}" for s in steps]:
                 m.add_transition("resume", src, dest, conditions=cond, before=self._before_enter)
         m.add_transition("lock", [s for s in live if s != "lock"], "lock")

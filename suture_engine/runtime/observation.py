@@ -228,10 +228,12 @@ class RobotCommand:
 
     @classmethod
     def position(
-        cls, q: object, qd: object | None = None, tool: ToolCommand | None = None
+        cls, q: object, qd: FloatArray | None = None, tool: ToolCommand | None = None
     ) -> RobotCommand:
         """A joint position setpoint [rad, rad, rad, m], with optional velocity feed-forward."""
-        return cls(CommandMode.POSITION, q=_frozen_array(q), qd=None if qd is None else qd, tool=tool)
+        return cls(
+            CommandMode.POSITION, q=_frozen_array(q), qd=None if qd is None else qd, tool=tool
+        )
 
     @classmethod
     def torque(cls, tau: object, tool: ToolCommand | None = None) -> RobotCommand:

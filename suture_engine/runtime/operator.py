@@ -1,0 +1,304 @@
+"""The operator channel: the surgeon's events (thesis 4.6.2, HDES of Fig. 4.22).
+
+Two sources, one interface (:meth:`poll` once per tick):
+
+- :class:`ScriptedOperator` reads an operator file (``--operator ops.yaml``)::
+
+      events:
+        - at: 3.2 s          # timed: at the first tick with t >= 3.2 s
+          do: lock
+        - when: state = tighten   # conditional: the first tick the condition holds
+          do: resume
+        - at: 1.0 s
+          do: force          # the simulated surgeon pushes the tool tip
+          robot: endobot_1
+          force: [0.0, 0.0, -1.0]   # [N], world frame
+          duration: 0.5 s
+
+  Actions: ``lock``, ``manual``, ``resume`` (optional ``step``), ``abort``,
+  ``force``. Each event fires once. Errors name the file, line and column.
+- :class:`InteractiveOperator` reads single keys from the terminal:
+  ``l`` lock, ``m`` manual, ``r`` resume, ``a`` abort.
+"""
+
+from __future__ import annotations
+
+import re
+import sys
+import threading
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from suture_engine.errors import SutureError
+
+__all__ = [
+    "InteractiveOperator",
+    "OperatorEvent",
+    "OperatorFileError",
+    "ScriptedOperator",
+    "load_operator_file",
+]
+
+Action = Literal["lock", "manual", "resume", "abort", "force"]
+_TIME = re.compile(r"^\s*([-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)\s*(s|ms|min)?\s*$")
+_SCALE = {"s": 1.0, "ms": 1e-3, "min": 60.0, None: 1.0}
+_WHEN = re.compile(r"^\s*(state|mode)\s*=\s*([A-Za-z0-9_\-./~]+)\s*$")
+
+
+class OperatorFileError(SutureError):
+    """An operator file that cannot be used.
+
+    Attributes:
+        file: the file.
+        line: 1-based line (0 when unknown).
+        column: 1-based column (0 when unknown).
+        path: the field path ("events[2].at").
+    """
+
+    code = "operator-file"
+
+    def __init__(self, file: str, message: str, line: int = 0, column: int = 0, path: str = ""):
+        where = f"{file}:{line}:{column}" if line else file
+        super().__init__(f"{where}: {path + ': ' if path else ''}{message}")
+        self.file = file
+        self.line = line
+        self.column = column
+        self.path = path
+
+
+def _seconds(value: Any) -> float:
+    if isinstance(value, bool):
+        raise ValueError("expected a time such as 3.2 s")
+    if isinstance(value, int | float):
+        return float(value)
+    if isinstance(value, str):
+        m = _TIME.match(value)
+        if m:
+            return float(m.group(1)) * _SCALE[m.group(2)]
+    raise ValueError(f"expected a time such as '3.2 s' or '500 ms', found {value!r}")
+
+
+class _Event(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    at: float | None = None
+    when: str | None = None
+    do: Action
+    step: str | None = None
+    robot: str | None = None
+    force: tuple[float, float, float] | None = None
+    duration: float = Field(default=0.0, ge=0.0)
+
+    @field_validator("at", "duration", mode="before")
+    @classmethod
+    def _time(cls, v: Any) -> Any:
+        return None if v is None else _seconds(v)
+
+    @field_validator("when")
+    @classmethod
+    def _cond(cls, v: str | None) -> str | None:
+        if v is not None and not _WHEN.match(v):
+            raise ValueError(
+                f"expected 'state = NAME' or 'mode = lock|manual|autonomous', got {v!r}"
+            )
+        return v
+
+    @model_validator(mode="after")
+    def _one_trigger(self) -> _Event:
+        if (self.at is None) == (self.when is None):
+            raise ValueError("give exactly one of 'at' (a time) or 'when' (a condition)")
+        if self.at is not None and self.at < 0:
+            raise ValueError("'at' must be >= 0 s")
+        if self.do == "force" and (self.force is None or self.robot is None):
+            raise ValueError("a 'force' event needs 'robot' and 'force' [N]")
+        if self.do != "force" and self.force is not None:
+            raise ValueError("'force' is only for 'do: force'")
+        if self.step is not None and self.do != "resume":
+            raise ValueError("'step' is only for 'do: resume'")
+        return self
+
+
+class _File(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    events: list[_Event]
+
+
+@dataclass(frozen=True)
+class OperatorEvent:
+    """One operator event as the interpreter receives it.
+
+    Attributes:
+        action: lock, manual, resume, abort or force.
+        step: the step to resume at (None: the interrupted one).
+        robot: the robot a force acts on.
+        force: the force at the tool tip [N], world frame.
+        duration: how long the force acts [s].
+        source: "scripted", "interactive" or "replay".
+        index: the event's position in its file (-1 otherwise).
+    """
+
+    action: str
+    step: str | None = None
+    robot: str | None = None
+    force: tuple[float, float, float] | None = None
+    duration: float = 0.0
+    source: str = "scripted"
+    index: int = -1
+
+
+def _node_at(node: yaml.Node | None, path: Sequence[int | str]) -> yaml.Node | None:
+    for key in path:
+        if isinstance(node, yaml.MappingNode):
+            node = next((v for k, v in node.value if k.value == key), node)
+            if node is None:
+                return None
+        elif isinstance(node, yaml.SequenceNode) and isinstance(key, int):
+            if key >= len(node.value):
+                return node
+            node = node.value[key]
+        else:
+            return node
+    return node
+
+
+def load_operator_file(path: str | Path) -> list[tuple[_Event, OperatorEvent]]:
+    """Read and validate an operator file.
+
+    Raises:
+        OperatorFileError: unreadable, not YAML, or an invalid event (located).
+    """
+    file = str(path)
+    try:
+        text = Path(path).read_text(encoding="utf-8")
+    except OSError as exc:
+        raise OperatorFileError(file, f"cannot read: {exc.strerror}") from None
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line, col = (mark.line + 1, mark.column + 1) if mark else (0, 0)
+        raise OperatorFileError(file, f"not valid YAML: {exc}", line, col) from None
+    if isinstance(data, list):
+        data = {"events": data}
+        root = yaml.MappingNode("tag:yaml.org,2002:map", [(yaml.ScalarNode("", "events"), root)])
+    try:
+        parsed = _File.model_validate(data)
+    except ValidationError as exc:
+        err = exc.errors()[0]
+        loc = [p for p in err["loc"] if not (isinstance(p, str) and p.startswith("function-"))]
+        node = _node_at(root, loc)
+        mark = node.start_mark if node is not None else None
+        dotted = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in loc).lstrip(".")
+        raise OperatorFileError(
+            file,
+            err["msg"],
+            mark.line + 1 if mark else 0,
+            mark.column + 1 if mark else 0,
+            dotted,
+        ) from None
+    return [
+        (e, OperatorEvent(e.do, e.step, e.robot, e.force, e.duration, "scripted", i))
+        for i, e in enumerate(parsed.events)
+    ]
+
+
+class ScriptedOperator:
+    """Timed and conditional operator events from an operator file.
+
+    Args:
+        path: the operator file.
+        dt: the control period [s] (a timed event fires at the first tick with
+            ``t >= at - dt / 2``).
+    """
+
+    def __init__(self, path: str | Path, dt: float = 1e-3) -> None:
+        self._events = load_operator_file(path)
+        self._fired = [False] * len(self._events)
+        self._half = dt / 2.0
+
+    def check_steps(self, steps: Sequence[str]) -> None:
+        """Reject resume targets that are not steps of the procedure."""
+        for spec, ev in self._events:
+            if ev.step is not None and ev.step not in steps:
+                raise OperatorFileError(
+                    "operator file",
+                    f"events[{ev.index}].step: no step {ev.step!r} in {list(steps)}",
+                )
+            del spec
+
+    def poll(self, t: float, state: str, step: str | None, mode: str) -> list[OperatorEvent]:
+        """Events that fire at time ``t`` [s] in automaton state ``state``."""
+        out: list[OperatorEvent] = []
+        for i, (spec, ev) in enumerate(self._events):
+            if self._fired[i]:
+                continue
+            if spec.at is not None:
+                hit = t >= spec.at - self._half
+            else:
+                m = _WHEN.match(spec.when or "")
+                assert m is not None
+                what, name = m.group(1), m.group(2)
+                hit = (name in (state, step)) if what == "state" else name == mode
+            if hit:
+                self._fired[i] = True
+                out.append(ev)
+        return out
+
+
+class InteractiveOperator:
+    """Keys typed in the terminal: l lock, m manual, r resume, a abort.
+
+    A daemon thread reads standard input (in cbreak mode when it is a terminal);
+    :meth:`poll` hands over the keys typed since the last tick.
+    """
+
+    KEYS = {"l": "lock", "m": "manual", "r": "resume", "a": "abort"}
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._queue: list[OperatorEvent] = []
+        self._stop = threading.Event()
+        self._restore: Any = None
+        if sys.stdin is not None and sys.stdin.isatty():
+            try:
+                import termios
+                import tty
+
+                fd = sys.stdin.fileno()
+                old = termios.tcgetattr(fd)
+                tty.setcbreak(fd)
+                self._restore = lambda: termios.tcsetattr(fd, termios.TCSADRAIN, old)
+            except (ImportError, OSError):
+                self._restore = None
+        self._thread = threading.Thread(target=self._read, daemon=True)
+        self._thread.start()
+
+    def _read(self) -> None:
+        while not self._stop.is_set():
+            ch = sys.stdin.read(1) if sys.stdin is not None else ""
+            if not ch:
+                return
+            action = self.KEYS.get(ch.lower())
+            if action is not None:
+                with self._lock:
+                    self._queue.append(OperatorEvent(action, source="interactive"))
+
+    def poll(self, t: float, state: str, step: str | None, mode: str) -> list[OperatorEvent]:
+        """Keys typed since the last call."""
+        with self._lock:
+            out, self._queue = self._queue, []
+        return out
+
+    def close(self) -> None:
+        """Restore the terminal."""
+        self._stop.set()
+        if self._restore is not None:
+            self._restore()
+            self._restore = None

@@ -1,0 +1,80 @@
+"""``summary.json``: a run's outcome in a few fields, written atomically."""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Mapping
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+__all__ = ["RunSummary", "write_summary"]
+
+
+@dataclass(frozen=True)
+class RunSummary:
+    """What ``summary.json`` holds.
+
+    Attributes:
+        procedure: the procedure's name.
+        outcome: "succeeded", "failed" or "aborted".
+        final_state: the automaton's last state.
+        sim_time_s: simulated time [s].
+        wall_time_s: wall time of the run [s].
+        real_time_factor: sim_time_s / wall_time_s.
+        control_rate_hz: control rate [Hz].
+        max_tension_N: largest estimated tension [N].
+        tension_limit_N: the procedure's tension limit [N] (None if none).
+        violations: invariant violations (dicts: t, tick, state, robot, invariant, value, bound).
+        retries: retries the failure policies made.
+        operator_events: operator events received.
+        metrics: procedure metrics.
+        knot: knot evaluation (None until the suturing work fills it).
+        seed: the random seed.
+        backend: the backend's name.
+        ticks: ticks run.
+    """
+
+    procedure: str
+    outcome: str
+    final_state: str
+    sim_time_s: float
+    wall_time_s: float
+    real_time_factor: float
+    control_rate_hz: float
+    max_tension_N: float
+    tension_limit_N: float | None
+    violations: list[dict[str, Any]]
+    retries: int
+    operator_events: int
+    metrics: Mapping[str, Any] = field(default_factory=dict)
+    knot: Mapping[str, Any] | None = None
+    seed: int = 0
+    backend: str = ""
+    ticks: int = 0
+
+    def to_dict(self) -> dict[str, Any]:
+        """A JSON-ready dict."""
+        out = asdict(self)
+        out["metrics"] = dict(self.metrics)
+        return out
+
+
+def write_summary(path: str | Path, summary: RunSummary) -> Path:
+    """Write ``summary`` as JSON at ``path`` atomically (temp file in the same folder + rename)."""
+    target = Path(path)
+    target.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=".summary-", suffix=".json", dir=target.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            json.dump(summary.to_dict(), fh, indent=2, sort_keys=True)
+            fh.write("\n")
+            fh.flush()
+            os.fsync(fh.fileno())
+        os.replace(tmp, target)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+    return target
