@@ -29,7 +29,7 @@ import threading
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
@@ -259,7 +259,7 @@ class InteractiveOperator:
     :meth:`poll` hands over the keys typed since the last tick.
     """
 
-    KEYS = {"l": "lock", "m": "manual", "r": "resume", "a": "abort"}
+    KEYS: ClassVar[dict[str, str]] = {"l": "lock", "m": "manual", "r": "resume", "a": "abort"}
 
     def __init__(self) -> None:
         self._lock = threading.Lock()
