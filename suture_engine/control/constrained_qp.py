@@ -1,0 +1,442 @@
+"""The per-tick velocity QP of move-constrained, on one persistent OSQP problem.
+
+Decision variables ``z = (qdot, s)``: the joint velocities qdot (4) [rad/s, rad/s,
+rad/s, m/s] and one slack per soft row. Each tick:
+
+    minimise  1/2 |J qdot - v_ref|_W^2 + 1/2 lambda |qdot|^2 + 1/2 w_s |s|^2
+    subject to
+      lo <= qdot <= hi        joint velocity limits, joint position limits over one tick
+                              horizon, and the singularity margin on q2 and q4 (3.22-3.23)
+      Jc J qdot + s  = -k_c C(x)       each equality fixture row (6.1-6.4, 6.31, 6.45)
+      Jc J qdot + s <= -k_c g(x)       each inequality fixture row (cone)
+      u_l^T J_p qdot + s <= ldot_max   the suture extension rate (4.10-4.11)
+
+with ``v_ref = v_target + K_x (x_target - x)`` (resolved rate with position feedback)
+and ``u_l`` the unit vector from the suture's exit point to the tool tip, so that
+``u_l^T J_p qdot`` is the rate of change of that distance.
+
+The problem is set up once (fixed sparsity; every entry that can ever be non-zero is a
+structural non-zero) and each tick only the values of q, l, u, P and A are passed to
+``update``; OSQP warm-starts from the previous solution. A solve is capped by
+``max_iter`` and ``time_limit``; when it does not end ``solved``, the previous command
+is held and the failure counted (``failures``, ``consecutive_failures``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from suture_engine.control.fixtures import Fixture
+from suture_engine.errors import SutureError
+
+__all__ = [
+    "INF",
+    "ConstrainedQP",
+    "JointLimits",
+    "QPError",
+    "QPResult",
+    "QPWeights",
+    "extension_rate_bound",
+]
+
+Array = NDArray[np.float64]
+
+INF = 1e30
+"""OSQP's "no bound" (never pass it inf)."""
+
+_N = 4
+
+
+class QPError(SutureError):
+    """The QP was configured with values it cannot use.
+
+    Attributes:
+        field: the offending field name.
+        value: the offending value.
+    """
+
+    code = "bad-qp"
+
+    def __init__(self, field: str, value: object, reason: str) -> None:
+        super().__init__(f"{field}={value!r}: {reason}")
+        self.field = field
+        self.value = value
+
+
+def extension_rate_bound(f_max: float, static_friction: float, viscous_coefficient: float) -> float:
+    """The largest suture extension rate that keeps the tension under f_max (4.10-4.11).
+
+    ``ldot_max = (f_max - F_s) / F_v``.
+
+    Args:
+        f_max: tension limit [N].
+        static_friction: suture-tissue static friction F_s [N].
+        viscous_coefficient: viscous coefficient F_v [N*s/m], > 0.
+
+    Returns:
+        ldot_max [m/s]; not positive when f_max <= F_s (the suture may not be pulled).
+    """
+    if not viscous_coefficient > 0.0:
+        raise QPError("viscous_coefficient", viscous_coefficient, "must be > 0 [N*s/m]")
+    return (f_max - static_friction) / viscous_coefficient
+
+
+@dataclass(frozen=True, eq=False)
+class JointLimits:
+    """Joint limits of one EndoBot and the singularity margin (3.22-3.23).
+
+    Attributes:
+        q_min: lower joint positions [rad, rad, rad, m].
+        q_max: upper joint positions [rad, rad, rad, m].
+        qd_max: joint speed limits [rad/s, rad/s, rad/s, m/s].
+        horizon: look-ahead for the position limits [s] (one control tick).
+        q2_margin: keep |q2| <= pi/2 - q2_margin [rad] (det J = c2 q4^2, (3.22)).
+        q4_min: keep q4 >= q4_min [m] (the RCM singularity q4 = 0, (3.23)).
+        singular_time_constant: approach time constant to the singularity margin [s]:
+            the speed towards it is at most (distance to the margin) / this.
+    """
+
+    q_min: Array = field(default_factory=lambda: np.array([-1.2, -1.2, -np.pi, 0.02]))
+    q_max: Array = field(default_factory=lambda: np.array([1.2, 1.2, np.pi, 0.30]))
+    qd_max: Array = field(default_factory=lambda: np.array([2.0, 2.0, 4.0, 0.2]))
+    horizon: float = 1e-3
+    q2_margin: float = 0.2
+    q4_min: float = 0.03
+    singular_time_constant: float = 0.05
+
+    def __post_init__(self) -> None:
+        for name in ("q_min", "q_max", "qd_max"):
+            arr = np.asarray(getattr(self, name), dtype=float).reshape(-1)
+            if arr.shape != (_N,) or not np.all(np.isfinite(arr)):
+                raise QPError(name, getattr(self, name), "expected 4 finite values")
+            object.__setattr__(self, name, arr)
+        if np.any(self.q_min >= self.q_max):
+            raise QPError("q_min", self.q_min, "must be below q_max")
+        if np.any(self.qd_max <= 0):
+            raise QPError("qd_max", self.qd_max, "must be positive")
+        if not self.horizon > 0 or not self.singular_time_constant > 0:
+            raise QPError("horizon", self.horizon, "horizon and time constant must be > 0 [s]")
+
+
+@dataclass(frozen=True, eq=False)
+class QPWeights:
+    """Weights and gains of the QP.
+
+    Attributes:
+        task: diagonal tracking weight W on (x, y, z, phi).
+        damping: lambda, joint-velocity regularisation [-].
+        slack: w_s, penalty on each slack (large: the rows are hard when feasible).
+        position_gain: K_x on the task position error [1/s].
+        fixture_gain: k_c, constraint error feedback [1/s] (C-dot = -k_c C).
+    """
+
+    task: Array = field(default_factory=lambda: np.array([1.0, 1.0, 1.0, 1e-3]))
+    damping: float = 1e-4
+    slack: float = 1e4
+    position_gain: float = 10.0
+    fixture_gain: float = 20.0
+
+    def __post_init__(self) -> None:
+        w = np.asarray(self.task, dtype=float).reshape(-1)
+        if w.shape != (_N,) or np.any(w < 0) or not np.all(np.isfinite(w)):
+            raise QPError("task", self.task, "expected 4 finite non-negative weights")
+        object.__setattr__(self, "task", w)
+        if not (self.damping > 0 and self.slack > 0):
+            raise QPError("damping", (self.damping, self.slack), "damping, slack must be > 0")
+
+
+@dataclass(frozen=True)
+class QPResult:
+    """One tick's solve.
+
+    Attributes:
+        qdot: the joint velocity command [rad/s, rad/s, rad/s, m/s] (held on failure).
+        status: OSQP's status text (``"solved"``, ``"maximum iterations reached"``...).
+        solved: whether this tick's solution was used.
+        iterations: ADMM iterations.
+        solve_time_s: OSQP's own solve time [s].
+        active: names of the rows at a bound (equality fixture rows always included).
+        slack_max: the largest slack magnitude [row units]; > 0 means a hard row gave way.
+    """
+
+    qdot: Array
+    status: str
+    solved: bool
+    iterations: int
+    solve_time_s: float
+    active: tuple[str, ...]
+    slack_max: float
+
+
+def _osqp() -> Any:
+    import osqp  # lazy: validate must not import it
+
+    return osqp
+
+
+class ConstrainedQP:
+    """Move-constrained's persistent velocity QP (see the module docstring).
+
+    Args:
+        fixtures: the virtual fixtures held in this state.
+        limits: joint limits and singularity margin.
+        weights: weights and gains.
+        extension_rate: add the suture extension-rate row (4.10-4.11).
+        settings: OSQP settings overriding the defaults (``max_iter``, ``time_limit`` [s],
+            ``eps_abs``...).
+    """
+
+    def __init__(
+        self,
+        fixtures: Sequence[Fixture] = (),
+        *,
+        limits: JointLimits | None = None,
+        weights: QPWeights | None = None,
+        extension_rate: bool = False,
+        settings: dict[str, Any] | None = None,
+    ) -> None:
+        import scipy.sparse as sp  # lazy
+
+        self.fixtures = tuple(fixtures)
+        self.limits = limits or JointLimits()
+        self.weights = weights or QPWeights()
+        self.extension_rate = extension_rate
+        self.failures = 0
+        self.consecutive_failures = 0
+        self.solves = 0
+        m_fix = sum(f.rows for f in self.fixtures)
+        m_soft = m_fix + (1 if extension_rate else 0)
+        self.n = _N + m_soft
+        self.m = _N + m_soft
+        self._m_fix = m_fix
+        self._m_soft = m_soft
+        names = [f"joint_bound[{j}]" for j in range(_N)]
+        eq_rows = []
+        for fx in self.fixtures:
+            for r in range(fx.rows):
+                if fx.kind == "eq":
+                    eq_rows.append(len(names))
+                names.append(f"{fx.name}[{r}]")
+        if extension_rate:
+            names.append("extension_rate")
+        self.row_names: tuple[str, ...] = tuple(names)
+        self._eq_rows = np.array(eq_rows, dtype=int)
+        self._bound_src = ["", "", "", ""]
+
+        # Dense images of the changing blocks (filled in place each tick).
+        self._H = np.zeros((_N, _N))
+        self._JW = np.zeros((_N, _N))
+        self._G = np.zeros((m_soft, _N))  # rows of A over qdot for the soft rows
+        self._q = np.zeros(self.n)
+        self._l = np.zeros(self.m)
+        self._u = np.zeros(self.m)
+        self._vref = np.zeros(_N)
+        self._qdot = np.zeros(_N)
+
+        # P: dense upper triangle over qdot, diagonal over the slacks.
+        rows_p, cols_p = [], []
+        for j in range(_N):
+            for i in range(j + 1):
+                rows_p.append(i)
+                cols_p.append(j)
+        self._p_idx = np.array([i * _N + j for i, j in zip(rows_p, cols_p, strict=True)])
+        rows_p += list(range(_N, self.n))
+        cols_p += list(range(_N, self.n))
+        self._Px = np.ones(len(rows_p))
+        self._Px[len(self._p_idx) :] = self.weights.slack
+        P = sp.csc_matrix((self._Px.copy(), (rows_p, cols_p)), shape=(self.n, self.n))
+        # A: identity over qdot for the bounds; dense soft block; identity over the slacks.
+        rows_a, cols_a, gidx = [], [], []
+        for j in range(_N):
+            rows_a.append(j)
+            cols_a.append(j)
+            gidx.append(-1)
+            for r in range(m_soft):
+                rows_a.append(_N + r)
+                cols_a.append(j)
+                gidx.append(r * _N + j)
+        for r in range(m_soft):
+            rows_a.append(_N + r)
+            cols_a.append(_N + r)
+            gidx.append(-1)
+        A = sp.csc_matrix((np.ones(len(rows_a)), (rows_a, cols_a)), shape=(self.m, self.n))
+        # The entries were listed column by column, rows ascending: CSC order, so data
+        # position k of A is entry k of the lists above. Check it once.
+        if A.nnz != len(rows_a) or not np.array_equal(A.indices, rows_a):
+            raise QPError("A", A.nnz, "unexpected sparsity layout")
+        gidx_arr = np.array(gidx)
+        self._a_pos = np.flatnonzero(gidx_arr >= 0)
+        self._a_src = gidx_arr[self._a_pos]
+        self._Ax = np.ones(len(rows_a))
+        self._a_vals = np.zeros(len(self._a_pos))
+
+        defaults: dict[str, Any] = {
+            "verbose": False,
+            "warm_starting": True,
+            "polishing": False,
+            "eps_abs": 1e-5,
+            "eps_rel": 1e-5,
+            "max_iter": 400,
+            "time_limit": 2e-3,
+            "check_termination": 10,
+            "adaptive_rho": True,
+        }
+        defaults.update(settings or {})
+        self._lo = np.zeros(_N)
+        self._hi = np.zeros(_N)
+        self._l[:] = -INF
+        self._u[:] = INF
+        self._solver = _osqp().OSQP()
+        self._solver.setup(P, self._q, A, self._l, self._u, **defaults)
+
+    # ------------------------------------------------------------------ assembly
+    def _joint_bounds(self, q: Array) -> None:
+        lim = self.limits
+        lo, hi = self._lo, self._hi
+        np.subtract(lim.q_min, q, out=lo)
+        lo /= lim.horizon
+        np.subtract(lim.q_max, q, out=hi)
+        hi /= lim.horizon
+        tau = lim.singular_time_constant
+        q2_edge = np.pi / 2 - lim.q2_margin
+        hi[1] = min(hi[1], (q2_edge - q[1]) / tau)
+        lo[1] = max(lo[1], (-q2_edge - q[1]) / tau)
+        lo[3] = max(lo[3], (lim.q4_min - q[3]) / tau)
+        np.clip(lo, -lim.qd_max, lim.qd_max, out=lo)
+        np.clip(hi, -lim.qd_max, lim.qd_max, out=hi)
+        # Outside a bound already: move back (at most at the speed limit), never an empty box.
+        np.maximum(hi, lo, out=hi)
+
+    def solve(
+        self,
+        q: Array,
+        x: Array,
+        jacobian: Array,
+        *,
+        v_target: Array | None = None,
+        x_target: Array | None = None,
+        exit_point: Array | None = None,
+        extension_rate_max: float | None = None,
+    ) -> QPResult:
+        """Update the persistent problem in place, solve it warm-started, return the command.
+
+        Args:
+            q: joint positions [rad, rad, rad, m].
+            x: task vector (x, y, z, phi) = k(q) (3.13) [m, m, m, rad].
+            jacobian: the analytical Jacobian dx/dq (3.21), shape (4, 4).
+            v_target: feed-forward task velocity [m/s, m/s, m/s, rad/s] (default 0).
+            x_target: task target for the position feedback (default: none).
+            exit_point: the suture's exit point [m]; the extension-rate row is off without it.
+            extension_rate_max: ldot_max [m/s] (4.11).
+
+        Returns:
+            The tick's QPResult.
+        """
+        w = self.weights
+        J = jacobian
+        # P over qdot: J^T W J + lambda I.
+        np.multiply(J.T, w.task, out=self._JW)
+        np.matmul(self._JW, J, out=self._H)
+        self._H.flat[:: _N + 1] += w.damping
+        np.take(self._H, self._p_idx, out=self._Px[: len(self._p_idx)])
+        # q over qdot: -J^T W v_ref.
+        vref = self._vref
+        if v_target is not None:
+            vref[:] = v_target
+        else:
+            vref[:] = 0.0
+        if x_target is not None:
+            vref += w.position_gain * (np.asarray(x_target) - x)
+        np.matmul(self._JW, vref, out=self._q[:_N])
+        self._q[:_N] *= -1.0
+        # Bounds over qdot.
+        self._joint_bounds(q)
+        self._l[:_N] = self._lo
+        self._u[:_N] = self._hi
+        # Soft rows.
+        r = 0
+        for fx in self.fixtures:
+            m = fx.rows
+            np.matmul(fx.jacobian(x), J, out=self._G[r : r + m])
+            rhs = -w.fixture_gain * fx.value(x)
+            self._u[_N + r : _N + r + m] = rhs
+            self._l[_N + r : _N + r + m] = rhs if fx.kind == "eq" else -INF
+            r += m
+        if self.extension_rate:
+            row = _N + r
+            if exit_point is None or extension_rate_max is None:
+                self._G[r] = 0.0
+                self._l[row], self._u[row] = -INF, INF
+            else:
+                d = x[:3] - np.asarray(exit_point)
+                dist = float(np.sqrt(d @ d))
+                if dist > 1e-9:
+                    np.matmul(d / dist, J[:3], out=self._G[r])
+                else:
+                    self._G[r] = 0.0
+                self._l[row] = -INF
+                self._u[row] = extension_rate_max
+        np.take(self._G, self._a_src, out=self._a_vals)
+        self._Ax[self._a_pos] = self._a_vals
+        s = self._solver
+        s.update(q=self._q, l=self._l, u=self._u, Px=self._Px, Ax=self._Ax)
+        res = s.solve(raise_error=False)
+        return self._finish(res)
+
+    def _finish(self, res: Any) -> QPResult:
+        info = res.info
+        status = str(info.status)
+        self.solves += 1
+        ok = status == "solved" and res.x is not None and np.all(np.isfinite(res.x))
+        if ok:
+            self._qdot[:] = res.x[:_N]
+            self.consecutive_failures = 0
+            slack = float(np.max(np.abs(res.x[_N:]))) if self._m_soft else 0.0
+            active = self._active(res.x)
+        else:
+            self.failures += 1
+            self.consecutive_failures += 1
+            slack = float("nan")
+            active = ()
+        return QPResult(
+            qdot=self._qdot.copy(),
+            status=status,
+            solved=bool(ok),
+            iterations=int(info.iter),
+            solve_time_s=float(info.solve_time),
+            active=active,
+            slack_max=slack,
+        )
+
+    def _active(self, z: Array) -> tuple[str, ...]:
+        ax = np.empty(self.m)
+        ax[:_N] = z[:_N]
+        if self._m_soft:
+            ax[_N:] = self._G @ z[:_N] + z[_N:]
+        tol = 1e-6 + 1e-4 * np.abs(self._u)
+        hit = (np.abs(ax - self._u) <= tol) | (
+            np.abs(ax - self._l) <= 1e-6 + 1e-4 * np.abs(self._l)
+        )
+        hit[self._eq_rows] = True
+        return tuple(self.row_names[i] for i in np.flatnonzero(hit))
+
+    # ------------------------------------------------------------------ introspection
+    def matrices(self) -> tuple[Array, Array, Array, Array, Array]:
+        """The current dense (P, q, A, l, u) (P full, symmetric), for independent checks."""
+        P = np.zeros((self.n, self.n))
+        P[:_N, :_N] = self._H
+        P[_N:, _N:] = np.eye(self.n - _N) * self.weights.slack
+        A = np.zeros((self.m, self.n))
+        A[:_N, :_N] = np.eye(_N)
+        A[_N:, :_N] = self._G
+        A[_N:, _N:] = np.eye(self._m_soft)
+        return P, self._q.copy(), A, self._l.copy(), self._u.copy()
+
+    def hold(self) -> Array:
+        """The last command that a successful solve produced [rad/s, ..., m/s]."""
+        return self._qdot.copy()
