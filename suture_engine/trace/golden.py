@@ -1,0 +1,386 @@
+"""Compares two traces channel by channel, with explicit tolerances.
+
+A golden comparison walks the expected and the actual messages of every
+channel in order. Two messages match when their simulation times are equal
+and every field matches: strings, booleans, integers and ``null`` exactly,
+floats within the field's :class:`Tolerance` (``|actual - expected| <= abs +
+rel * |expected|``), lists with equal lengths, objects with equal keys. Events,
+transitions and operator events are compared exactly.
+
+The result, :class:`GoldenResult`, says whether the traces match and, if not,
+gives the first divergence in simulation time: tick, time, channel, field path,
+expected and actual values and the tolerance, plus a readable text.
+
+Example:
+    >>> result = compare("tests/golden/hold.mcap", "runs/x/trace.mcap")
+    >>> if not result.ok:
+    ...     print(result.text)
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import math
+import os
+import re
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any, Union
+
+from suture_engine.trace.reader import TraceMessage, TraceReader
+
+__all__ = [
+    "DEFAULT_TOLERANCES",
+    "Divergence",
+    "GoldenResult",
+    "Tolerance",
+    "ToleranceSpec",
+    "compare",
+]
+
+_INDEX = re.compile(r"\[\d+\]")
+_MISSING = "<missing>"
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    """The allowed difference of a numeric field.
+
+    A value matches when ``|actual - expected| <= abs + rel * |expected|``.
+    Two non-finite values (``null`` in JSON) match each other only.
+
+    Attributes:
+        abs: absolute tolerance [the field's unit].
+        rel: relative tolerance [-].
+    """
+
+    abs: float = 0.0
+    rel: float = 0.0
+
+    def __post_init__(self) -> None:
+        if not (self.abs >= 0.0 and self.rel >= 0.0):
+            raise ValueError(f"tolerances must be >= 0, got abs={self.abs}, rel={self.rel}")
+
+    def bound(self, expected: float) -> float:
+        """The allowed ``|actual - expected|`` for this expected value."""
+        return self.abs + self.rel * abs(expected)
+
+    def allows(self, expected: float, actual: float) -> bool:
+        """Whether ``actual`` matches ``expected``."""
+        return abs(actual - expected) <= self.bound(expected)
+
+    def __str__(self) -> str:
+        if self.abs == 0.0 and self.rel == 0.0:
+            return "exact"
+        return f"abs {self.abs:g} + rel {self.rel:g}"
+
+
+EXACT = Tolerance()
+
+
+@dataclass(frozen=True)
+class ToleranceSpec:
+    """Tolerances per channel and field, first matching rule wins.
+
+    Attributes:
+        rules: ``(topic_glob, field_glob, tolerance)`` triples. The field glob
+            matches the field path without list indices (``position`` matches
+            ``position[3]``; ``centerline`` matches ``centerline[4][2]``).
+        ignore: ``(topic_glob, field_glob)`` pairs of fields not compared at all.
+        default: the tolerance of numeric fields that no rule matches.
+    """
+
+    rules: tuple[tuple[str, str, Tolerance], ...] = ()
+    ignore: tuple[tuple[str, str], ...] = ()
+    default: Tolerance = EXACT
+
+    def tolerance_for(self, topic: str, path: str) -> Tolerance | None:
+        """The tolerance of a field, or ``None`` when it is ignored."""
+        bare = _INDEX.sub("", path)
+        for topic_glob, field_glob in self.ignore:
+            if fnmatch.fnmatchcase(topic, topic_glob) and fnmatch.fnmatchcase(bare, field_glob):
+                return None
+        for topic_glob, field_glob, tol in self.rules:
+            if fnmatch.fnmatchcase(topic, topic_glob) and fnmatch.fnmatchcase(bare, field_glob):
+                return tol
+        return self.default
+
+    def with_rules(self, *rules: tuple[str, str, Tolerance]) -> ToleranceSpec:
+        """A copy whose new rules take precedence over the existing ones."""
+        return ToleranceSpec(tuple(rules) + self.rules, self.ignore, self.default)
+
+
+DEFAULT_TOLERANCES = ToleranceSpec(
+    rules=(
+        ("/events", "*", EXACT),
+        ("/transitions", "*", EXACT),
+        ("/operator", "*", EXACT),
+        ("/meta", "*", EXACT),
+        ("/ground_truth/knot", "*", EXACT),
+        ("/qp/*", "*", EXACT),
+    ),
+    ignore=(("/meta", "engine_version"), ("/qp/*", "solve_time_us")),
+    default=Tolerance(abs=1e-9, rel=1e-9),
+)
+"""Exact for events, transitions, operator events, metadata, knot and QP status;
+``abs 1e-9 + rel 1e-9`` for other numbers (floating-point noise only). Ignores the
+engine version and the wall-clock QP solve time."""
+
+
+@dataclass(frozen=True)
+class Divergence:
+    """The first place where two traces differ.
+
+    Attributes:
+        time_ns: simulation time of the message [ns].
+        tick: the control tick (``time * control_rate``), or ``None`` without a rate.
+        channel: the topic.
+        index: the message's index on its channel (0-based).
+        field: the field path (``values[3]``; ``""`` for the message itself).
+        expected: the expected value (``"<missing>"`` when absent).
+        actual: the actual value (``"<missing>"`` when absent).
+        tolerance: the tolerance applied, or ``None`` for a structural difference.
+        reason: what differs, in words.
+    """
+
+    time_ns: int
+    tick: int | None
+    channel: str
+    index: int
+    field: str
+    expected: Any
+    actual: Any
+    tolerance: Tolerance | None
+    reason: str
+
+
+@dataclass(frozen=True)
+class GoldenResult:
+    """The outcome of a comparison.
+
+    Attributes:
+        ok: True when the traces match.
+        divergence: the first divergence in simulation time, or ``None``.
+        channel_divergences: the first divergence of every diverging channel.
+        messages_compared: messages compared (expected side).
+        channels_compared: channels compared.
+    """
+
+    ok: bool
+    divergence: Divergence | None
+    channel_divergences: tuple[Divergence, ...] = field(default=())
+    messages_compared: int = 0
+    channels_compared: int = 0
+
+    def __bool__(self) -> bool:
+        return self.ok
+
+    @property
+    def text(self) -> str:
+        """A readable report of the comparison."""
+        head = f"{self.messages_compared} messages on {self.channels_compared} channels"
+        d = self.divergence
+        if d is None:
+            return f"traces match ({head})"
+        tick = f"tick {d.tick}" if d.tick is not None else "tick ?"
+        lines = [
+            f"traces diverge: first at {tick} (t = {d.time_ns / 1e9:.9f} s)",
+            f"  channel   {d.channel} (message #{d.index})",
+            f"  field     {d.field or '<message>'}",
+            f"  expected  {_show(d.expected)}",
+            f"  actual    {_show(d.actual)}",
+        ]
+        if d.tolerance is not None and _is_float_pair(d.expected, d.actual):
+            diff = abs(float(d.actual) - float(d.expected))
+            bound = d.tolerance.bound(float(d.expected))
+            lines.append(f"  |diff|    {diff:.6g} > {bound:.6g} ({d.tolerance})")
+        lines.append(f"  reason    {d.reason}")
+        others = [c for c in self.channel_divergences if c is not d]
+        if others:
+            lines.append(f"also diverging ({len(others)} more channels):")
+            for c in others[:10]:
+                lines.append(f"  {c.channel} from t = {c.time_ns / 1e9:.9f} s: {c.field}")
+        lines.append(f"compared {head}")
+        return "\n".join(lines)
+
+
+TraceSource = Union[str, "os.PathLike[str]", TraceReader, Iterable[TraceMessage]]
+
+
+def _load(source: TraceSource) -> tuple[dict[str, list[TraceMessage]], dict[str, Any]]:
+    if isinstance(source, (str, os.PathLike)):
+        source = TraceReader(source)
+    per_topic: dict[str, list[TraceMessage]] = {}
+    meta: dict[str, Any] = {}
+    messages = source.messages() if isinstance(source, TraceReader) else source
+    for msg in messages:
+        per_topic.setdefault(msg.topic, []).append(msg)
+        if msg.topic == "/meta" and not meta and isinstance(msg.data, Mapping):
+            meta = dict(msg.data)
+    return per_topic, meta
+
+
+def compare(
+    expected: TraceSource,
+    actual: TraceSource,
+    tolerances: ToleranceSpec = DEFAULT_TOLERANCES,
+    *,
+    topics: Sequence[str] | None = None,
+) -> GoldenResult:
+    """Compares an actual trace with an expected (golden) one.
+
+    Args:
+        expected: the golden trace: a path, a reader, or messages.
+        actual: the trace to check: a path, a reader, or messages of a live run.
+        tolerances: per-channel, per-field tolerances.
+        topics: topics or globs to compare (default: every channel of either side).
+
+    Returns:
+        The result, with the first divergence in simulation time.
+
+    Raises:
+        TraceError: a file cannot be read (foreign, corrupt, I/O).
+    """
+    exp, meta = _load(expected)
+    act, _ = _load(actual)
+    rate = meta.get("control_rate_hz")
+    names = sorted(set(exp) | set(act))
+    if topics is not None:
+        names = [n for n in names if any(fnmatch.fnmatchcase(n, p) for p in topics)]
+    found: list[Divergence] = []
+    count = 0
+    for topic in names:
+        e_msgs, a_msgs = exp.get(topic, []), act.get(topic, [])
+        count += len(e_msgs)
+        d = _compare_channel(topic, e_msgs, a_msgs, tolerances, rate)
+        if d is not None:
+            found.append(d)
+    found.sort(key=lambda d: (d.time_ns, d.channel))
+    first = found[0] if found else None
+    return GoldenResult(first is None, first, tuple(found), count, len(names))
+
+
+def _tick(time_ns: int, rate: Any) -> int | None:
+    if not isinstance(rate, (int, float)) or rate <= 0:
+        return None
+    return round(time_ns * float(rate) / 1e9)
+
+
+def _compare_channel(
+    topic: str,
+    expected: list[TraceMessage],
+    actual: list[TraceMessage],
+    spec: ToleranceSpec,
+    rate: Any,
+) -> Divergence | None:
+    for i in range(max(len(expected), len(actual))):
+        if i >= len(actual):
+            e = expected[i]
+            return Divergence(
+                e.log_time_ns,
+                _tick(e.log_time_ns, rate),
+                topic,
+                i,
+                "",
+                _summary(e),
+                _MISSING,
+                None,
+                f"actual trace ends after {len(actual)} messages on this channel",
+            )
+        if i >= len(expected):
+            a = actual[i]
+            return Divergence(
+                a.log_time_ns,
+                _tick(a.log_time_ns, rate),
+                topic,
+                i,
+                "",
+                _MISSING,
+                _summary(a),
+                None,
+                f"unexpected message: expected only {len(expected)} on this channel",
+            )
+        e, a = expected[i], actual[i]
+        if e.log_time_ns != a.log_time_ns:
+            t = min(e.log_time_ns, a.log_time_ns)
+            return Divergence(
+                t,
+                _tick(t, rate),
+                topic,
+                i,
+                "<time>",
+                e.log_time_ns,
+                a.log_time_ns,
+                None,
+                "messages at different simulation times [ns]",
+            )
+        found = _diff(topic, "", e.data, a.data, spec)
+        if found is not None:
+            path, ev, av, tol, reason = found
+            return Divergence(
+                e.log_time_ns, _tick(e.log_time_ns, rate), topic, i, path, ev, av, tol, reason
+            )
+    return None
+
+
+_Found = tuple[str, Any, Any, Tolerance | None, str]
+
+
+def _diff(topic: str, path: str, e: Any, a: Any, spec: ToleranceSpec) -> _Found | None:
+    """The first difference inside two JSON values, or ``None``."""
+    if isinstance(e, dict) and isinstance(a, dict):
+        for key in sorted(set(e) | set(a)):
+            sub = f"{path}.{key}" if path else str(key)
+            if spec.tolerance_for(topic, sub) is None:
+                continue
+            if key not in a:
+                return sub, e[key], _MISSING, None, "field missing in the actual message"
+            if key not in e:
+                return sub, _MISSING, a[key], None, "unexpected field in the actual message"
+            found = _diff(topic, sub, e[key], a[key], spec)
+            if found is not None:
+                return found
+        return None
+    if isinstance(e, list) and isinstance(a, list):
+        if len(e) != len(a):
+            return path, len(e), len(a), None, "lists of different lengths"
+        for i, (ei, ai) in enumerate(zip(e, a, strict=True)):
+            found = _diff(topic, f"{path}[{i}]", ei, ai, spec)
+            if found is not None:
+                return found
+        return None
+    if _is_float_pair(e, a):
+        tol = spec.tolerance_for(topic, path)
+        if tol is None:
+            return None
+        ef, af = float(e), float(a)
+        if isinstance(e, int) and isinstance(a, int) and tol == EXACT:
+            return None if e == a else (path, e, a, tol, "values differ")
+        if not (math.isfinite(ef) and math.isfinite(af)):
+            return None if ef == af else (path, e, a, tol, "non-finite value")
+        if tol.allows(ef, af):
+            return None
+        return path, e, a, tol, "outside the tolerance"
+    if type(e) is not type(a):
+        return path, e, a, None, f"types differ ({type(e).__name__} vs {type(a).__name__})"
+    if e != a:
+        return path, e, a, EXACT, "values differ"
+    return None
+
+
+def _is_float_pair(e: Any, a: Any) -> bool:
+    return (
+        isinstance(e, (int, float))
+        and isinstance(a, (int, float))
+        and not isinstance(e, bool)
+        and not isinstance(a, bool)
+    )
+
+
+def _summary(msg: TraceMessage) -> str:
+    return _show(msg.data)
+
+
+def _show(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 200 else text[:197] + "..."
