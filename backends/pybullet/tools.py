@@ -1,0 +1,555 @@
+"""Tool tips: grasper jaws with a flexible hook, a bent-tip grasper, and the stitcher.
+
+Every tool is a small rigid body held by a fixed "drive" constraint. The drive's parent is
+either the world (the tool is then driven kinematically along a pose trajectory by
+:meth:`Tool.set_pose`, which is what scripted tests do) or a link of a robot body
+(:meth:`Tool.mount`, e.g. the EndoBot's tool link), in which case the tool follows that
+link. The drive applies at most ``drive_force`` [N], so a tool pulling on a snagged thread
+lags instead of tearing the simulation apart.
+
+* :class:`Grasper` (4.1): pneumatic jaws, binary open/close with a travel time [s].
+  Closing on the thread creates a fixed constraint to the nearest thread capsule within
+  ``reach`` [m] of the jaw centre; opening removes it. It carries the flexible hook
+  (Fig. 4.6), a curved body that extends over the jaw hinge or retracts, and catches the
+  thread by contact.
+* :class:`BentTipGrasper`: a grasper whose jaw sits behind a universal joint (two bend
+  angles [rad]), for knot-tying algorithm 3.
+* :class:`Stitcher` (4.1, Fig. 4.3): EndoStitch-like, two jaws with the needle locked in one;
+  :meth:`Stitcher.pass_needle` hands it to the other jaw after the travel time.
+
+Call :meth:`Tool.step` once per physics step (it advances jaw travel and the hook).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from enum import Enum
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from suture_engine.errors import SutureError
+
+if TYPE_CHECKING:
+    from backends.pybullet.suture import Suture
+
+__all__ = [
+    "BentTipGrasper",
+    "Grasper",
+    "JawState",
+    "Stitcher",
+    "Tool",
+    "ToolError",
+]
+
+Vec3 = tuple[float, float, float]
+Quat = tuple[float, float, float, float]
+_IDENTITY: Quat = (0.0, 0.0, 0.0, 1.0)
+
+
+class ToolError(SutureError):
+    """A tool was asked for something it cannot do.
+
+    Attributes:
+        tool: the tool's name.
+        action: what was asked.
+        reason: why it cannot be done.
+    """
+
+    code = "tool-error"
+
+    def __init__(self, tool: str, action: str, reason: str) -> None:
+        super().__init__(f"{tool}: cannot {action}: {reason}")
+        self.tool = tool
+        self.action = action
+        self.reason = reason
+
+
+class JawState(Enum):
+    """State of pneumatic jaws (binary with a travel time)."""
+
+    OPEN = "open"
+    """Fully open; nothing held."""
+    CLOSING = "closing"
+    """Travelling towards closed."""
+    CLOSED = "closed"
+    """Fully closed; holds the thread capsule it closed on, if any."""
+    OPENING = "opening"
+    """Travelling towards open; releases what it held at the start of travel."""
+
+
+@dataclass
+class Tool:
+    """Base of all tool tips: a rigid body held by a force-limited fixed drive constraint.
+
+    Attributes:
+        client: PyBullet physics client id.
+        name: the tool's name (used in errors).
+        body: PyBullet body id of the tool tip.
+        drive: constraint id of the drive.
+        drive_force: largest force the drive applies [N].
+    """
+
+    client: int
+    name: str
+    body: int = -1
+    drive: int = -1
+    drive_force: float = 50.0
+    dt: float = 1e-3
+
+    def _make_body(self, half_extents: Vec3, mass: float, rgba: list[float]) -> None:
+        import pybullet as p
+
+        col = p.createCollisionShape(
+            p.GEOM_BOX, halfExtents=list(half_extents), physicsClientId=self.client
+        )
+        vis = p.createVisualShape(
+            p.GEOM_BOX, halfExtents=list(half_extents), rgbaColor=rgba, physicsClientId=self.client
+        )
+        self.body = p.createMultiBody(mass, col, vis, [0, 0, 0], physicsClientId=self.client)
+        # Jaws hold by constraint, not by contact: the tip body does not collide.
+        p.setCollisionFilterGroupMask(self.body, -1, 0, 0, physicsClientId=self.client)
+
+    def _drive_to_world(self, position: Vec3, orientation: Quat) -> None:
+        import pybullet as p
+
+        p.resetBasePositionAndOrientation(
+            self.body, position, orientation, physicsClientId=self.client
+        )
+        self.drive = p.createConstraint(
+            self.body,
+            -1,
+            -1,
+            -1,
+            p.JOINT_FIXED,
+            [0, 0, 0],
+            [0, 0, 0],
+            list(position),
+            childFrameOrientation=orientation,
+            physicsClientId=self.client,
+        )
+        p.changeConstraint(self.drive, maxForce=self.drive_force, physicsClientId=self.client)
+
+    def set_pose(self, position: Vec3, orientation: Quat = _IDENTITY) -> None:
+        """Command the tool tip's pose (kinematic drive from the world).
+
+        Args:
+            position: tip position, world frame [m].
+            orientation: tip orientation, quaternion (x, y, z, w).
+
+        Raises:
+            ToolError: the tool is mounted on a robot link.
+        """
+        import pybullet as p
+
+        if self._mounted:
+            raise ToolError(self.name, "set a pose", "it is mounted on a robot link")
+        p.changeConstraint(
+            self.drive,
+            jointChildPivot=list(position),
+            jointChildFrameOrientation=list(orientation),
+            maxForce=self.drive_force,
+            physicsClientId=self.client,
+        )
+
+    _mounted: bool = False
+
+    def mount(self, robot_body: int, link: int, offset: Vec3 = (0.0, 0.0, 0.0)) -> None:
+        """Attach the tool tip to a robot link (e.g. the EndoBot's tool link).
+
+        Args:
+            robot_body: PyBullet body id of the robot.
+            link: link index of the tool link.
+            offset: tip position in the link frame [m].
+        """
+        import pybullet as p
+
+        state = p.getLinkState(robot_body, link, physicsClientId=self.client)
+        pos, orn = p.multiplyTransforms(state[4], state[5], offset, _IDENTITY)
+        p.removeConstraint(self.drive, physicsClientId=self.client)
+        p.resetBasePositionAndOrientation(self.body, pos, orn, physicsClientId=self.client)
+        self.drive = p.createConstraint(
+            robot_body,
+            link,
+            self.body,
+            -1,
+            p.JOINT_FIXED,
+            [0, 0, 0],
+            list(offset),
+            [0, 0, 0],
+            physicsClientId=self.client,
+        )
+        p.changeConstraint(self.drive, maxForce=self.drive_force, physicsClientId=self.client)
+        self._mounted = True
+
+    def pose(self) -> tuple[Vec3, Quat]:
+        """The tool tip's current pose: position [m] and quaternion (x, y, z, w)."""
+        import pybullet as p
+
+        pos, orn = p.getBasePositionAndOrientation(self.body, physicsClientId=self.client)
+        return (tuple(pos), tuple(orn))  # type: ignore[return-value]
+
+    def step(self) -> None:
+        """Advance the tool's own motions by one physics step (default: nothing)."""
+
+    def _attach(self, body: int, other: int) -> int:
+        """A fixed constraint from ``body`` to ``other`` at their current relative pose."""
+        import pybullet as p
+
+        c = self.client
+        pa, oa = p.getBasePositionAndOrientation(body, physicsClientId=c)
+        pb, ob = p.getBasePositionAndOrientation(other, physicsClientId=c)
+        ia, iao = p.invertTransform(pa, oa)
+        rel_p, rel_o = p.multiplyTransforms(ia, iao, pb, ob)
+        cons = p.createConstraint(
+            body,
+            -1,
+            other,
+            -1,
+            p.JOINT_FIXED,
+            [0, 0, 0],
+            rel_p,
+            [0, 0, 0],
+            parentFrameOrientation=rel_o,
+            physicsClientId=c,
+        )
+        p.changeConstraint(cons, maxForce=self.drive_force, physicsClientId=c)
+        return cons
+
+
+@dataclass
+class Grasper(Tool):
+    """Pneumatic grasper jaws with the flexible hook (4.1, Fig. 4.6).
+
+    Attributes:
+        travel_time: jaw travel time, open to closed or back [s].
+        reach: largest distance from the jaw centre to a thread capsule's axis that the
+            closing jaws still catch [m].
+        hook_travel_time: hook travel time, retracted to extended [s].
+        hook_reach: how far the extended hook's tip passes the jaw centre [m].
+    """
+
+    travel_time: float = 0.1
+    reach: float = 3e-3
+    hook_travel_time: float = 0.3
+    hook_reach: float = 6e-3
+    state: JawState = JawState.OPEN
+    suture: Suture | None = None
+    held_segment: int = -1
+    hook_body: int = -1
+    hook_extension: float = 0.0
+    _hook_target: float = 0.0
+    _timer: float = 0.0
+    _grasp: int = -1
+    _jaw_offset: Vec3 = (0.0, 0.0, 0.0)
+    _jaw_orientation: Quat = _IDENTITY
+    _hook_drive: int = -1
+    _held: list[int] = field(default_factory=list)
+
+    @classmethod
+    def create(
+        cls,
+        client: int,
+        name: str = "grasper",
+        position: Vec3 = (0.0, 0.0, 0.1),
+        orientation: Quat = _IDENTITY,
+        suture: Suture | None = None,
+        hook: bool = True,
+        **kwargs: float,
+    ) -> Grasper:
+        """Add a grasper tip to the world, driven kinematically from ``position``.
+
+        Args:
+            client: PyBullet physics client id.
+            name: tool name.
+            position: initial jaw centre, world frame [m].
+            orientation: initial orientation; the jaws point along the tip's +z.
+            suture: the thread the jaws can grasp and the hook can catch.
+            hook: whether to build the flexible hook.
+            **kwargs: any of ``travel_time`` [s], ``reach`` [m], ``hook_travel_time`` [s],
+                ``hook_reach`` [m], ``drive_force`` [N].
+        """
+        self = cls(client=client, name=name, suture=suture, **kwargs)  # type: ignore[arg-type]
+        self._make_body((1.5e-3, 1.5e-3, 4e-3), 0.02, [0.7, 0.7, 0.7, 1.0])
+        self._drive_to_world(position, orientation)
+        if hook:
+            self._make_hook()
+        return self
+
+    # ---- jaws ---------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Start closing the jaws (pneumatic: takes ``travel_time``)."""
+        if self.state in (JawState.OPEN, JawState.OPENING):
+            self.state = JawState.CLOSING
+            self._timer = self.travel_time
+
+    def open(self) -> None:
+        """Start opening the jaws; whatever they hold is released at once."""
+        import pybullet as p
+
+        if self.state in (JawState.CLOSED, JawState.CLOSING):
+            self.state = JawState.OPENING
+            self._timer = self.travel_time
+            if self._grasp >= 0:
+                p.removeConstraint(self._grasp, physicsClientId=self.client)
+                self._grasp = -1
+                self.held_segment = -1
+
+    @property
+    def holding(self) -> bool:
+        """Whether the jaws hold a thread capsule."""
+        return self._grasp >= 0
+
+    def grip_force(self) -> float:
+        """Force the jaws transmit to the held capsule [N] (0 if none)."""
+        import pybullet as p
+
+        if self._grasp < 0:
+            return 0.0
+        f = p.getConstraintState(self._grasp, physicsClientId=self.client)
+        return float(np.linalg.norm(f[:3]))
+
+    def _nearest_segment(self) -> int:
+        if self.suture is None:
+            return -1
+        (x, _) = self.pose()
+        pts = self.suture.centerline()
+        a, b = pts[:-1], pts[1:]
+        u = b - a
+        t = np.clip(np.einsum("ij,ij->i", np.asarray(x) - a, u) / np.einsum("ij,ij->i", u, u), 0, 1)
+        d = np.linalg.norm(a + t[:, None] * u - np.asarray(x), axis=1)
+        i = int(np.argmin(d))
+        return i if d[i] <= self.reach else -1
+
+    def step(self) -> None:
+        """Advance jaw travel and hook motion by one physics step."""
+        if self.state in (JawState.CLOSING, JawState.OPENING):
+            self._timer -= self.dt
+            if self._timer <= 0.0:
+                if self.state is JawState.CLOSING:
+                    self.state = JawState.CLOSED
+                    i = self._nearest_segment()
+                    if i >= 0 and self.suture is not None:
+                        self._grasp = self._attach(self.body, self.suture.bodies[i])
+                        self.held_segment = i
+                else:
+                    self.state = JawState.OPEN
+        self._step_hook()
+
+    # ---- flexible hook (Fig. 4.6) -------------------------------------------------------
+
+    def _make_hook(self) -> None:
+        """A J-shaped hook of three capsules that slides along the jaw's +z."""
+        import pybullet as p
+
+        c = self.client
+        r = 0.4e-3
+        shapes = [p.GEOM_CAPSULE] * 3
+        # Shank along z, then a bend and a barb pointing back (-z) at x = 2.5 mm.
+        positions = [[0.0, 0, -3e-3], [1.25e-3, 0, 0.5e-3], [2.5e-3, 0, -1e-3]]
+        q_shank = _IDENTITY
+        q_bend = p.getQuaternionFromEuler([0, math.pi / 2, 0])
+        orientations = [q_shank, q_bend, q_shank]
+        lengths = [8e-3, 2.5e-3, 3e-3]
+        col = p.createCollisionShapeArray(
+            shapeTypes=shapes,
+            radii=[r] * 3,
+            lengths=lengths,
+            collisionFramePositions=positions,
+            collisionFrameOrientations=orientations,
+            physicsClientId=c,
+        )
+        vis = p.createVisualShapeArray(
+            shapeTypes=shapes,
+            radii=[r] * 3,
+            lengths=lengths,
+            visualFramePositions=positions,
+            visualFrameOrientations=orientations,
+            rgbaColors=[[0.9, 0.6, 0.1, 1.0]] * 3,
+            physicsClientId=c,
+        )
+        pos, orn = self.pose()
+        self.hook_body = p.createMultiBody(0.005, col, vis, pos, orn, physicsClientId=c)
+        p.changeDynamics(self.hook_body, -1, lateralFriction=0.6, physicsClientId=c)
+        p.setCollisionFilterPair(self.hook_body, self.body, -1, -1, 0, physicsClientId=c)
+        self._hook_drive = p.createConstraint(
+            self.body,
+            -1,
+            self.hook_body,
+            -1,
+            p.JOINT_FIXED,
+            [0, 0, 0],
+            [0, 0, self._hook_offset()],
+            [0, 0, 0],
+            physicsClientId=c,
+        )
+        p.changeConstraint(self._hook_drive, maxForce=self.drive_force, physicsClientId=c)
+
+    def _hook_offset(self) -> float:
+        """Hook position along the jaw axis [m]: retracted behind the hinge or extended."""
+        retracted = -12e-3
+        return retracted + self.hook_extension * (self.hook_reach - retracted)
+
+    def extend_hook(self) -> None:
+        """Start extending the hook over the jaw hinge (takes ``hook_travel_time``)."""
+        self._hook_target = 1.0
+
+    def retract_hook(self) -> None:
+        """Start retracting the hook behind the hinge (takes ``hook_travel_time``)."""
+        self._hook_target = 0.0
+
+    def _step_hook(self) -> None:
+        import pybullet as p
+
+        if self.hook_body < 0 or self.hook_extension == self._hook_target:
+            return
+        rate = self.dt / self.hook_travel_time
+        delta = self._hook_target - self.hook_extension
+        self.hook_extension += max(-rate, min(rate, delta))
+        p.changeConstraint(
+            self._hook_drive,
+            jointChildPivot=[0, 0, self._hook_offset()],
+            maxForce=self.drive_force,
+            physicsClientId=self.client,
+        )
+
+
+@dataclass
+class BentTipGrasper(Grasper):
+    """Grasper whose jaws sit behind a universal joint (for algorithm 3).
+
+    The shaft pose is commanded with :meth:`set_pose`; the jaw pose is the shaft pose
+    followed by a rotation ``bend_x`` about x, ``bend_y`` about y [rad] at the joint and a
+    ``tip_length`` [m] offset along the bent +z.
+    """
+
+    bend_x: float = 0.0
+    bend_y: float = 0.0
+    tip_length: float = 8e-3
+    _shaft: tuple[Vec3, Quat] = ((0.0, 0.0, 0.1), _IDENTITY)
+
+    def set_bend(self, bend_x: float, bend_y: float) -> None:
+        """Command the universal joint's two angles [rad]."""
+        self.bend_x, self.bend_y = bend_x, bend_y
+        self.set_pose(*self._shaft)
+
+    def set_pose(self, position: Vec3, orientation: Quat = _IDENTITY) -> None:
+        """Command the shaft end (the universal joint) pose; the jaws follow the bend.
+
+        Args:
+            position: universal joint position, world frame [m].
+            orientation: shaft orientation, quaternion (x, y, z, w).
+        """
+        import pybullet as p
+
+        self._shaft = (position, orientation)
+        bend = p.getQuaternionFromEuler([self.bend_x, self.bend_y, 0.0])
+        pos, orn = p.multiplyTransforms(
+            position, orientation, [0, 0, 0], bend, physicsClientId=self.client
+        )
+        pos, orn = p.multiplyTransforms(
+            pos, orn, [0, 0, self.tip_length], _IDENTITY, physicsClientId=self.client
+        )
+        super().set_pose(tuple(pos), tuple(orn))  # type: ignore[arg-type]
+
+
+@dataclass
+class Stitcher(Tool):
+    """EndoStitch-like stitcher: two jaws, the needle locked in one (4.1, Fig. 4.3).
+
+    Attributes:
+        gap: distance between the two jaws along the tip's x [m].
+        travel_time: time for the needle hand-over [s].
+        needle_holder: index (0 or 1) of the jaw that holds the needle.
+    """
+
+    gap: float = 8e-3
+    travel_time: float = 0.2
+    needle_holder: int = 0
+    jaws: list[int] = field(default_factory=list)
+    needle_body: int = -1
+    _lock: int = -1
+    _timer: float = -1.0
+
+    @classmethod
+    def create(
+        cls,
+        client: int,
+        name: str = "stitcher",
+        position: Vec3 = (0.0, 0.0, 0.1),
+        orientation: Quat = _IDENTITY,
+        needle_body: int = -1,
+        **kwargs: float,
+    ) -> Stitcher:
+        """Add a stitcher to the world, the needle locked in jaw 0.
+
+        Args:
+            client: PyBullet physics client id.
+            name: tool name.
+            position: tip centre (between the jaws), world frame [m].
+            orientation: tip orientation; the jaws sit at ±``gap``/2 along its x.
+            needle_body: body id of the needle (``Suture.needle_body``); -1 for none.
+            **kwargs: ``gap`` [m], ``travel_time`` [s], ``drive_force`` [N].
+        """
+        import pybullet as p
+
+        self = cls(client=client, name=name, needle_body=needle_body, **kwargs)  # type: ignore[arg-type]
+        self._make_body((self.gap / 2 + 1e-3, 1e-3, 1e-3), 0.02, [0.5, 0.5, 0.55, 1.0])
+        self._drive_to_world(position, orientation)
+        for side in (-1, 1):
+            col = p.createCollisionShape(
+                p.GEOM_BOX, halfExtents=[1e-3, 1.5e-3, 3e-3], physicsClientId=client
+            )
+            jaw = p.createMultiBody(0.005, col, col, [0, 0, 0], physicsClientId=client)
+            p.setCollisionFilterGroupMask(jaw, -1, 0, 0, physicsClientId=client)
+            cons = p.createConstraint(
+                self.body,
+                -1,
+                jaw,
+                -1,
+                p.JOINT_FIXED,
+                [0, 0, 0],
+                [side * self.gap / 2, 0, 3e-3],
+                [0, 0, 0],
+                physicsClientId=client,
+            )
+            p.changeConstraint(cons, maxForce=self.drive_force, physicsClientId=client)
+            self.jaws.append(jaw)
+        p.stepSimulation(physicsClientId=client)
+        if needle_body >= 0:
+            jaw_pos, jaw_orn = p.getBasePositionAndOrientation(self.jaws[0], physicsClientId=client)
+            p.resetBasePositionAndOrientation(needle_body, jaw_pos, jaw_orn, physicsClientId=client)
+            self._lock = self._attach(self.jaws[0], needle_body)
+        return self
+
+    @property
+    def passing(self) -> bool:
+        """Whether a needle hand-over is under way."""
+        return self._timer >= 0.0
+
+    def pass_needle(self) -> None:
+        """Start handing the needle to the other jaw (takes ``travel_time``).
+
+        Raises:
+            ToolError: there is no needle, or a hand-over is already under way.
+        """
+        if self.needle_body < 0:
+            raise ToolError(self.name, "pass the needle", "it holds no needle")
+        if self.passing:
+            raise ToolError(self.name, "pass the needle", "a hand-over is under way")
+        self._timer = self.travel_time
+
+    def step(self) -> None:
+        """Advance a needle hand-over by one physics step."""
+        import pybullet as p
+
+        if not self.passing:
+            return
+        self._timer -= self.dt
+        if self._timer < 0.0:
+            self._timer = -1.0
+            p.removeConstraint(self._lock, physicsClientId=self.client)
+            self.needle_holder = 1 - self.needle_holder
+            self._lock = self._attach(self.jaws[self.needle_holder], self.needle_body)
