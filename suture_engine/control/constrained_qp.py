@@ -293,22 +293,47 @@ class ConstrainedQP:
         self._u[:] = INF
         self._solver = _osqp().OSQP()
         self._solver.setup(P, self._q, A, self._l, self._u, **defaults)
+        # OSQP's compiled solver object: its update_data_vec/update_data_mat/solve are
+        # what the Python wrapper's update()/solve() call, minus ~40 us of per-call
+        # bookkeeping (bound clipping copies, derivative cache, an info namespace).
+        # Our bounds are already within +-1e30, so nothing is lost by calling it directly.
+        low = getattr(self._solver, "_solver", None)
+        needed = ("update_data_vec", "update_data_mat", "solve", "info", "solution")
+        self._low = low if low is not None and all(hasattr(low, a) for a in needed) else None
+        lim = self.limits
+        self._qmin_h = lim.q_min / lim.horizon
+        self._qmax_h = lim.q_max / lim.horizon
+        self._inv_h = 1.0 / lim.horizon
+        self._neg_qd = -lim.qd_max
+        self._q2_edge = np.pi / 2 - lim.q2_margin
+        self._ax = np.zeros(self.m)
+        self._tmp = np.zeros(self.m)
+        self._hit = np.zeros(self.m, dtype=bool)
+        self._tol_u = np.zeros(self.m)
+        self._ubuf = np.zeros(_N)
 
     # ------------------------------------------------------------------ assembly
     def _joint_bounds(self, q: Array) -> None:
         lim = self.limits
-        lo, hi = self._lo, self._hi
-        np.subtract(lim.q_min, q, out=lo)
-        lo /= lim.horizon
-        np.subtract(lim.q_max, q, out=hi)
-        hi /= lim.horizon
-        tau = lim.singular_time_constant
-        q2_edge = np.pi / 2 - lim.q2_margin
-        hi[1] = min(hi[1], (q2_edge - q[1]) / tau)
-        lo[1] = max(lo[1], (-q2_edge - q[1]) / tau)
-        lo[3] = max(lo[3], (lim.q4_min - q[3]) / tau)
-        np.clip(lo, -lim.qd_max, lim.qd_max, out=lo)
-        np.clip(hi, -lim.qd_max, lim.qd_max, out=hi)
+        lo, hi, tmp = self._lo, self._hi, self._ubuf
+        np.multiply(q, self._inv_h, out=tmp)
+        np.subtract(self._qmin_h, tmp, out=lo)
+        np.subtract(self._qmax_h, tmp, out=hi)
+        inv_tau = 1.0 / lim.singular_time_constant
+        q2, q4 = float(q[1]), float(q[3])
+        b = (self._q2_edge - q2) * inv_tau
+        if b < hi[1]:
+            hi[1] = b
+        b = (-self._q2_edge - q2) * inv_tau
+        if b > lo[1]:
+            lo[1] = b
+        b = (lim.q4_min - q4) * inv_tau
+        if b > lo[3]:
+            lo[3] = b
+        np.minimum(lo, lim.qd_max, out=lo)
+        np.maximum(lo, self._neg_qd, out=lo)
+        np.minimum(hi, lim.qd_max, out=hi)
+        np.maximum(hi, self._neg_qd, out=hi)
         # Outside a bound already: move back (at most at the speed limit), never an empty box.
         np.maximum(hi, lo, out=hi)
 
@@ -337,8 +362,30 @@ class ConstrainedQP:
         Returns:
             The tick's QPResult.
         """
+        self._assemble(q, x, jacobian, v_target, x_target, exit_point, extension_rate_max)
+        low = self._low
+        if low is not None:
+            low.update_data_vec(q=self._q, l=self._l, u=self._u)
+            low.update_data_mat(P_x=self._Px, P_i=None, A_x=self._Ax, A_i=None)
+            low.solve()
+            info = low.info
+            return self._finish(info.status, info.iter, info.solve_time, low.solution.x)
+        s = self._solver
+        s.update(q=self._q, l=self._l, u=self._u, Px=self._Px, Ax=self._Ax)
+        res = s.solve(raise_error=False)
+        return self._finish(res.info.status, res.info.iter, res.info.solve_time, res.x)
+
+    def _assemble(
+        self,
+        q: Array,
+        x: Array,
+        J: Array,
+        v_target: Array | None,
+        x_target: Array | None,
+        exit_point: Array | None,
+        extension_rate_max: float | None,
+    ) -> None:
         w = self.weights
-        J = jacobian
         # P over qdot: J^T W J + lambda I.
         np.multiply(J.T, w.task, out=self._JW)
         np.matmul(self._JW, J, out=self._H)
@@ -363,7 +410,8 @@ class ConstrainedQP:
         for fx in self.fixtures:
             m = fx.rows
             np.matmul(fx.jacobian(x), J, out=self._G[r : r + m])
-            rhs = -w.fixture_gain * fx.value(x)
+            rhs = fx.value(x)
+            rhs *= -w.fixture_gain
             self._u[_N + r : _N + r + m] = rhs
             self._l[_N + r : _N + r + m] = rhs if fx.kind == "eq" else -INF
             r += m
@@ -373,31 +421,27 @@ class ConstrainedQP:
                 self._G[r] = 0.0
                 self._l[row], self._u[row] = -INF, INF
             else:
-                d = x[:3] - np.asarray(exit_point)
+                d = x[:3] - exit_point
                 dist = float(np.sqrt(d @ d))
                 if dist > 1e-9:
-                    np.matmul(d / dist, J[:3], out=self._G[r])
+                    d /= dist
+                    np.matmul(d, J[:3], out=self._G[r])
                 else:
                     self._G[r] = 0.0
                 self._l[row] = -INF
                 self._u[row] = extension_rate_max
         np.take(self._G, self._a_src, out=self._a_vals)
         self._Ax[self._a_pos] = self._a_vals
-        s = self._solver
-        s.update(q=self._q, l=self._l, u=self._u, Px=self._Px, Ax=self._Ax)
-        res = s.solve(raise_error=False)
-        return self._finish(res)
 
-    def _finish(self, res: Any) -> QPResult:
-        info = res.info
-        status = str(info.status)
+    def _finish(self, status: str, iters: int, solve_time: float, z: Array | None) -> QPResult:
         self.solves += 1
-        ok = status == "solved" and res.x is not None and np.all(np.isfinite(res.x))
+        ok = status == "solved" and z is not None and bool(np.isfinite(z).all())
         if ok:
-            self._qdot[:] = res.x[:_N]
+            assert z is not None
+            self._qdot[:] = z[:_N]
             self.consecutive_failures = 0
-            slack = float(np.max(np.abs(res.x[_N:]))) if self._m_soft else 0.0
-            active = self._active(res.x)
+            slack = float(np.abs(z[_N:]).max()) if self._m_soft else 0.0
+            active = self._active(z)
         else:
             self.failures += 1
             self.consecutive_failures += 1
@@ -405,25 +449,36 @@ class ConstrainedQP:
             active = ()
         return QPResult(
             qdot=self._qdot.copy(),
-            status=status,
-            solved=bool(ok),
-            iterations=int(info.iter),
-            solve_time_s=float(info.solve_time),
+            status=str(status),
+            solved=ok,
+            iterations=int(iters),
+            solve_time_s=float(solve_time),
             active=active,
             slack_max=slack,
         )
 
     def _active(self, z: Array) -> tuple[str, ...]:
-        ax = np.empty(self.m)
+        ax, tmp, hit, tol = self._ax, self._tmp, self._hit, self._tol_u
         ax[:_N] = z[:_N]
         if self._m_soft:
-            ax[_N:] = self._G @ z[:_N] + z[_N:]
-        tol = 1e-6 + 1e-4 * np.abs(self._u)
-        hit = (np.abs(ax - self._u) <= tol) | (
-            np.abs(ax - self._l) <= 1e-6 + 1e-4 * np.abs(self._l)
-        )
+            np.matmul(self._G, z[:_N], out=ax[_N:])
+            ax[_N:] += z[_N:]
+        # |Ax - u| <= 1e-6 + 1e-4 |u|, or the same at l.
+        np.abs(self._u, out=tol)
+        tol *= 1e-4
+        tol += 1e-6
+        np.subtract(ax, self._u, out=tmp)
+        np.abs(tmp, out=tmp)
+        np.less_equal(tmp, tol, out=hit)
+        np.abs(self._l, out=tol)
+        tol *= 1e-4
+        tol += 1e-6
+        np.subtract(ax, self._l, out=tmp)
+        np.abs(tmp, out=tmp)
+        hit |= tmp <= tol
         hit[self._eq_rows] = True
-        return tuple(self.row_names[i] for i in np.flatnonzero(hit))
+        names = self.row_names
+        return tuple(names[i] for i in hit.nonzero()[0])
 
     # ------------------------------------------------------------------ introspection
     def matrices(self) -> tuple[Array, Array, Array, Array, Array]:

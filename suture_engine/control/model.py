@@ -1,0 +1,135 @@
+"""The robot model a controller compensates with: M^, C^, G^ and the friction estimate.
+
+Controllers of chapter 5 cancel (5.21) or compensate (5.10, 5.19) the robot's
+dynamics with an *estimate* of them, which in general differs from the robot
+they drive. :class:`ControlModel` bundles that estimate as plain callables plus
+the Coulomb and viscous friction coefficients, so the same controller can run on
+the thesis' E1 parameters, on identified ones, or on a deliberately wrong model.
+
+:func:`endobot_control_model` builds one from ``suture_engine.robot.endobot``
+(imported lazily).
+"""
+
+from __future__ import annotations
+
+import enum
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    "ControlModel",
+    "FrictionSign",
+    "endobot_control_model",
+    "friction_compensation",
+]
+
+FloatArray = NDArray[np.float64]
+
+if TYPE_CHECKING:
+    from suture_engine.robot.params import EndoBotParams
+
+
+@dataclass(frozen=True)
+class ControlModel:
+    """The estimated dynamics a controller uses.
+
+    Attributes:
+        mass_matrix: ``q -> M^(q)`` [kg m^2 / kg], shape ``(n, n)`` (3.38-3.39).
+        coriolis_matrix: ``(q, qd) -> C^(q, qd)``, shape ``(n, n)`` (3.40).
+        gravity_vector: ``q -> G^(q)`` [N m / N], shape ``(n,)`` (3.41, 5.2).
+        coulomb: estimated Coulomb coefficients ``Fc^`` [N m / N], shape ``(n,)`` (5.19).
+        viscous: estimated viscous coefficients ``Fv^`` [N m s / N s], shape ``(n,)``.
+    """
+
+    mass_matrix: Callable[[FloatArray], FloatArray]
+    coriolis_matrix: Callable[[FloatArray, FloatArray], FloatArray]
+    gravity_vector: Callable[[FloatArray], FloatArray]
+    coulomb: FloatArray
+    viscous: FloatArray
+
+    @property
+    def n(self) -> int:
+        """Number of joints."""
+        return int(self.coulomb.shape[0])
+
+
+def endobot_control_model(
+    params: EndoBotParams | None = None, *, friction_scale: float = 1.0
+) -> ControlModel:
+    """A :class:`ControlModel` from the EndoBot model of ``suture_engine.robot``.
+
+    Args:
+        params: an EndoBot parameter set; ``None`` means the thesis' E1 values.
+        friction_scale: multiplies the friction estimate (``0`` switches friction
+            compensation off, for the off/on experiments of Table 5.1).
+
+    Returns:
+        The model, whose callables close over ``params``.
+    """
+    from suture_engine.robot import endobot
+
+    p = params if params is not None else endobot.E1
+    fc = np.array([j.friction.coulomb for j in p.joints])
+    fv = np.array([j.friction.viscous for j in p.joints])
+    g_out = np.zeros(4)
+
+    def mass(q: FloatArray) -> FloatArray:
+        return np.asarray(endobot.mass_matrix(q, p))
+
+    def coriolis(q: FloatArray, qd: FloatArray) -> FloatArray:
+        return np.asarray(endobot.coriolis_matrix(q, qd, p))
+
+    def gravity(q: FloatArray) -> FloatArray:
+        return endobot.gravity_vector(q, p, g_out)
+
+    return ControlModel(
+        mass_matrix=mass,
+        coriolis_matrix=coriolis,
+        gravity_vector=gravity,
+        coulomb=fc * friction_scale,
+        viscous=fv * friction_scale,
+    )
+
+
+class FrictionSign(enum.Enum):
+    """Which velocity the Coulomb compensation ``Fc^ sgn(.)`` (5.19) takes its sign from."""
+
+    MEASURED = "measured"
+    """The measured or estimated joint velocity, as printed in (5.19)."""
+    DESIRED = "desired"
+    """The reference velocity: immune to velocity-estimate noise around zero speed."""
+
+
+def friction_compensation(
+    model: ControlModel,
+    velocity: FloatArray,
+    out: FloatArray,
+    *,
+    deadband: float = 0.0,
+    viscous: bool = False,
+) -> FloatArray:
+    """Write the friction feed-forward ``Fc^ sgn(v) [+ Fv^ v]`` (5.19, 3.43) into ``out``.
+
+    Args:
+        model: the friction estimate.
+        velocity: the velocity the sign is taken from [rad/s or m/s].
+        out: preallocated output [N m or N], shape ``(n,)``.
+        deadband: below this speed the sign ramps linearly (0 gives a hard sign) [rad/s].
+        viscous: also add the viscous term ``Fv^ v``.
+
+    Returns:
+        ``out``.
+    """
+    if deadband > 0.0:
+        np.divide(velocity, deadband, out=out)
+        np.clip(out, -1.0, 1.0, out=out)
+    else:
+        np.sign(velocity, out=out)
+    out *= model.coulomb
+    if viscous:
+        out += model.viscous * velocity
+    return out
