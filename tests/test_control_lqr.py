@@ -37,7 +37,8 @@ def test_gain_leaves_near_zero_riccati_residual() -> None:
 
 
 def test_scalar_double_integrator_matches_closed_form() -> None:
-    # Hand-derived: for x'' = u, Q = diag(qp, qv), R = rho, K = [sqrt(qp/rho), sqrt(qv/rho + 2 sqrt(qp/rho))]
+    # Hand-derived for x'' = u, Q = diag(qp, qv), R = rho:
+    # K = [sqrt(qp/rho), sqrt(qv/rho + 2 sqrt(qp/rho))]
     qp, qv, rho = 400.0, 3.0, 0.5
     a, b = double_integrator(1)
     k = lqr_gain(a, b, np.diag([qp, qv]), [[rho]]).gain[0]
