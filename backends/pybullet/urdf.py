@@ -56,7 +56,8 @@ def _inertial(b: _Inertial) -> str:
     return (
         f'    <inertial>\n      <origin xyz="0 0 {b.com_z!r}" rpy="0 0 0"/>\n'
         f'      <mass value="{b.mass!r}"/>\n'
-        f'      <inertia ixx="{b.ixx!r}" ixy="0" ixz="0" iyy="{b.iyy!r}" iyz="0" izz="{b.izz!r}"/>\n'
+        f'      <inertia ixx="{b.ixx!r}" ixy="0" ixz="0"'
+        f' iyy="{b.iyy!r}" iyz="0" izz="{b.izz!r}"/>\n'
         "    </inertial>\n"
     )
 
