@@ -114,6 +114,8 @@ class TraceWriter:
         fsync: fsync the file at every flush (crash safety against power loss too).
         include_wall_clock: keep wall-clock fields (breaks byte-identical traces).
         validate: check every message against its channel's JSON schema (slow; tests).
+        message_index: also write MCAP message indexes (optional in MCAP; about 16 bytes
+            per message; readers, Foxglove included, use the chunk indexes without them).
 
     Raises:
         TraceIOError: the file cannot be created.
@@ -130,8 +132,9 @@ class TraceWriter:
         fsync: bool = True,
         include_wall_clock: bool = False,
         validate: bool = False,
+        message_index: bool = False,
     ) -> None:
-        from mcap.writer import CompressionType, Writer
+        from mcap.writer import CompressionType, IndexType, Writer
 
         if compression not in ("zstd", "lz4", "none"):
             raise ValueError(f"compression must be zstd, lz4 or none, not {compression!r}")
@@ -152,7 +155,15 @@ class TraceWriter:
             "lz4": CompressionType.LZ4,
             "none": CompressionType.NONE,
         }[compression]
-        self._mcap = Writer(self._stream, chunk_size=chunk_size, compression=kind)  # type: ignore[arg-type]
+        index = IndexType.CHUNK | IndexType.ATTACHMENT | IndexType.METADATA
+        if message_index:
+            index |= IndexType.MESSAGE
+        self._mcap = Writer(
+            self._stream,  # type: ignore[arg-type]
+            chunk_size=chunk_size,
+            compression=kind,
+            index_types=index,
+        )
         self._schema_ids: dict[str, int] = {}
         self._channel_ids: dict[str, tuple[int, channels.ChannelSpec]] = {}
         self._closed = False
