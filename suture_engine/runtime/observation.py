@@ -8,8 +8,9 @@ simulator's ground truth of the suture; that goes to the trace only, through
 :meth:`backends.base.Backend.ground_truth`.
 
 Backends return a :class:`Measurement` (raw sensor values, no velocity);
-the interpreter turns it into an :class:`Observation` by running the
-:class:`WashoutVelocityEstimator` on the encoder positions.
+the interpreter turns it into an :class:`Observation` by running the washout
+filter (:class:`suture_engine.control.filters.WashoutFilter`) on the encoder
+positions.
 
 Skills return a :class:`Command`: per robot a :class:`RobotCommand` holding a
 joint position setpoint, a joint velocity setpoint or joint torques, and a
@@ -41,7 +42,6 @@ __all__ = [
     "StepResult",
     "ToolCommand",
     "ToolState",
-    "WashoutVelocityEstimator",
 ]
 
 N_JOINTS = 4
@@ -276,42 +276,3 @@ class StepResult:
     command: Command
     status: SkillStatus = SkillStatus.RUNNING
     message: str = ""
-
-
-class WashoutVelocityEstimator:
-    """Joint velocity from encoder positions by the washout filter (3.78-3.79), (5.50).
-
-    The continuous filter is ``v(s) = s * wc / (s + wc) * q(s)``; discretised by
-    backward Euler at the control period ``dt`` [s]:
-    ``v_k = (v_{k-1} + wc * (q_k - q_{k-1})) / (1 + wc * dt)``.
-
-    Args:
-        n: number of joints.
-        dt: sample period [s].
-        cutoff_hz: washout cut-off frequency wc / (2 pi) [Hz].
-    """
-
-    def __init__(self, n: int, dt: float, cutoff_hz: float = 50.0) -> None:
-        if dt <= 0.0 or cutoff_hz <= 0.0:
-            raise ValueError("dt and cutoff_hz must be positive")
-        self._wc = 2.0 * np.pi * cutoff_hz
-        self._den = 1.0 + self._wc * dt
-        self._q_prev: FloatArray | None = None
-        self._v = np.zeros(n)
-
-    def reset(self) -> None:
-        """Forget the history; the next sample gives zero velocity."""
-        self._q_prev = None
-        self._v[:] = 0.0
-
-    def update(self, q: FloatArray) -> FloatArray:
-        """Feed one encoder sample [rad or m]; return the velocity estimate (a copy)."""
-        if self._q_prev is None:
-            self._q_prev = np.array(q, dtype=np.float64)
-            self._v[:] = 0.0
-        else:
-            self._v = (self._v + self._wc * (q - self._q_prev)) / self._den
-            self._q_prev[:] = q
-        out = self._v.copy()
-        out.flags.writeable = False
-        return out

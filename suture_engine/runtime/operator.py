@@ -233,6 +233,11 @@ class ScriptedOperator:
                 )
             del spec
 
+    @property
+    def exhausted(self) -> bool:
+        """True when no timed event is left (conditional ones may still fire)."""
+        return all(f or spec.at is None for f, (spec, _) in zip(self._fired, self._events))
+
     def poll(self, t: float, state: str, step: str | None, mode: str) -> list[OperatorEvent]:
         """Events that fire at time ``t`` [s] in automaton state ``state``."""
         out: list[OperatorEvent] = []

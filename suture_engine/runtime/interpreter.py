@@ -1,0 +1,369 @@
+"""The tick loop: observe -> skill -> controller -> monitor -> apply -> step -> trace.
+
+:class:`Interpreter` runs a compiled :class:`~suture_engine.runtime.automaton.Plan`
+on a backend at the control rate (default 1 kHz). Each tick:
+
+1. **observe**: the backend's measurement; joint velocities are *estimated*
+   from the encoders by the washout filter (3.78-3.79, 5.50) -> :class:`Observation`;
+2. **operator**: operator events of this tick (lock, manual, resume, abort,
+   a force at the tool tip);
+3. **skill**: in Autonomous mode the active step's skill computes a command;
+   a skill exception or ``FAILURE`` is an unpredictable event, ``SUCCESS`` the
+   planned event;
+4. **monitor**: the step's invariant (4.43), the step's timeout and sensor
+   faults; a violation is an unpredictable event (to the step's NOT-BE state);
+5. **controller**: per robot, the law of its mode (Lock 4.44, Manual 5.1,
+   Autonomous 5.10) gives joint torques;
+6. **apply, step** the backend; **trace** the tick.
+
+Ground truth from the backend goes to the trace only.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import asdict
+from typing import Any, Protocol
+
+import numpy as np
+
+from suture_engine.runtime.automaton import Automaton, Mode, Plan, StepSpec
+from suture_engine.runtime.context import SkillContext
+from suture_engine.runtime.controller import ModeController
+from suture_engine.runtime.monitor import Invariant, Monitor, TensionEstimator
+from suture_engine.runtime.observation import (
+    Command,
+    CommandMode,
+    Measurement,
+    Observation,
+    RobotCommand,
+    RobotObservation,
+    SceneGeometry,
+    SkillStatus,
+    StepResult,
+)
+from suture_engine.runtime.operator import OperatorEvent
+from suture_engine.runtime.recorder import Recorder
+from suture_engine.runtime.summary import RunSummary
+
+__all__ = ["Interpreter", "OperatorSource"]
+
+
+class OperatorSource(Protocol):
+    """Where operator events come from (scripted, interactive, a replayed trace)."""
+
+    def poll(self, t: float, state: str, step: str | None, mode: str) -> list[OperatorEvent]:
+        """Events at time ``t`` [s] in automaton state ``state``."""
+        ...
+
+
+def _normalise(result: Any) -> StepResult:
+    if isinstance(result, StepResult):
+        return result
+    if isinstance(result, Command):
+        return StepResult(result)
+    if result is None:
+        return StepResult(Command({}))
+    raise TypeError(f"a skill's step must return a StepResult or a Command, not {type(result)}")
+
+
+class Interpreter:
+    """Runs a plan on a backend under the supervisory automaton.
+
+    Args:
+        plan: the compiled procedure.
+        backend: a :class:`backends.base.Backend`, already reset.
+        first: the measurement returned by the backend's reset.
+        roles: role -> robot name.
+        params: the procedure's resolved parameters (SI).
+        scene: the scene model (declared geometry), handed to skills.
+        seed: the run's seed (for the summary).
+        control_rate_hz: ticks per second [Hz].
+        operator: the operator source (None: no operator).
+        recorder: where the trace goes (None: nowhere).
+        max_time_s: simulated time after which the run stops as failed [s].
+        tension_limit_N: the procedure's tension limit, for the summary [N].
+        progress: called every 100 ticks with (t [s], max_time_s [s]).
+        washout_pole: pole of the washout velocity filter [rad/s] (5.50).
+        manual_invariant: the Manual mode invariant (4.45), e.g. the joint limits.
+    """
+
+    def __init__(
+        self,
+        plan: Plan,
+        backend: Any,
+        first: Measurement,
+        *,
+        roles: Mapping[str, str] | None = None,
+        params: Mapping[str, Any] | None = None,
+        scene: Any = None,
+        seed: int = 0,
+        control_rate_hz: float = 1000.0,
+        operator: OperatorSource | None = None,
+        recorder: Recorder | None = None,
+        max_time_s: float = 300.0,
+        tension_limit_N: float | None = None,
+        progress: Callable[[float, float], None] | None = None,
+        washout_pole: float = 150.0,
+        manual_invariant: Invariant | None = None,
+    ) -> None:
+        from suture_engine.control.filters import WashoutFilter
+
+        self.plan = plan
+        self.backend = backend
+        self.roles = dict(roles or {})
+        self.params = dict(params or {})
+        self.scene = scene
+        self.seed = seed
+        self.rate = float(control_rate_hz)
+        self.dt = 1.0 / self.rate
+        self.period_ns = round(1e9 / self.rate)
+        self.operator_source = operator
+        self.recorder = recorder or Recorder()
+        self.max_time_s = max_time_s
+        self.tension_limit_N = tension_limit_N
+        self.progress = progress
+        self.manual_invariant = manual_invariant
+        self.robots = tuple(first.robots)
+        self.geometry: SceneGeometry = backend.geometry()
+        self._washout = {r: WashoutFilter(washout_pole, self.dt) for r in self.robots}
+        self.controller = ModeController(self.robots, self.dt)
+        self.monitor = Monitor()
+        self.tension = TensionEstimator()
+        self.tension.tare(first)
+        self.automaton = Automaton(plan, self._start_skill)
+        self.ctx: SkillContext | None = None
+        self.operator_events = 0
+        self.metrics: dict[str, Any] = {}
+        self._pending_meas: Measurement | None = first
+        self._obs: Observation | None = None
+        self._qp_failures: dict[str, int] = {r: 0 for r in self.robots}
+        self.tick_index = 0
+        self.wall_time_s = 0.0
+        self.stop_reason = ""
+        self._waiting_ticks = 0
+
+    # ----------------------------------------------------------------- skills
+    def _base_poses(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        robots = getattr(self.scene, "robots", None) or {}
+        for name, spec in robots.items():
+            base = spec.base
+            r, p, y = base.rpy
+            cr, sr, cp, sp, cy, sy = (
+                np.cos(r),
+                np.sin(r),
+                np.cos(p),
+                np.sin(p),
+                np.cos(y),
+                np.sin(y),
+            )
+            rot = (
+                cy * cp,
+                cy * sp * sr - sy * cr,
+                cy * sp * cr + sy * sr,
+                sy * cp,
+                sy * sp * sr + cy * cr,
+                sy * sp * cr - cy * sr,
+                -sp,
+                cp * sr,
+                cp * cr,
+            )
+            out[name] = (tuple(float(v) for v in base.position), tuple(float(v) for v in rot))
+        return out
+
+    def _start_skill(self, spec: StepSpec, skill: Any) -> None:
+        assert self._obs is not None
+        ctx = SkillContext(
+            step=spec.name,
+            roles=self.roles,
+            dt=self.dt,
+            start=self._obs,
+            scene=self.scene,
+            params=self.params,
+            base_poses=self._base_poses(),
+        )
+        start = getattr(skill, "start", None)
+        if start is not None:
+            start(ctx)
+        self.ctx = ctx
+
+    # ----------------------------------------------------------------- one tick
+    def _observe(self) -> tuple[Measurement, Observation]:
+        meas = self._pending_meas if self._pending_meas is not None else self.backend.observe()
+        self._pending_meas = None
+        robots = {}
+        for name, m in meas.robots.items():
+            qd = np.array(self._washout[name].update(m.q))
+            qd.flags.writeable = False
+            robots[name] = RobotObservation(m.q, qd, m.base_wrench, m.tool)
+        return meas, Observation(meas.tick, meas.t, robots, self.geometry)
+
+    def _record_transitions(self, time_ns: int, records: list[Any]) -> None:
+        for rec in records:
+            self.recorder.transition(time_ns, rec)
+
+    def _handle_operator(self, time_ns: int, obs: Observation) -> None:
+        if self.operator_source is None:
+            return
+        a = self.automaton
+        for ev in self.operator_source.poll(obs.t, a.state, a.step_name, a.mode.value):
+            self.operator_events += 1
+            if ev.action == "force":
+                apply = getattr(self.backend, "apply_external_force", None)
+                if apply is None or ev.robot is None or ev.force is None:
+                    self.recorder.operator(time_ns, ev, False, "backend applies no force")
+                else:
+                    apply(ev.robot, ev.force, ev.duration)
+                    self.recorder.operator(time_ns, ev, True, "")
+                continue
+            try:
+                records = a.operator(ev.action, ev.step)
+            except Exception as exc:  # a refused action is recorded, never fatal
+                self.recorder.operator(time_ns, ev, False, str(exc))
+                continue
+            self.recorder.operator(time_ns, ev, True, "")
+            self._record_transitions(time_ns, records)
+
+    def _skill_tick(self, time_ns: int, obs: Observation, meas: Measurement) -> Command | None:
+        a = self.automaton
+        spec = a.active_step
+        if a.mode is not Mode.AUTONOMOUS or spec is None or a.active_skill is None:
+            return None
+        assert self.ctx is not None
+        try:
+            result = _normalise(a.active_skill.step(self.ctx, obs))
+        except Exception as exc:
+            records = a.unpredictable(f"skill-failure:{type(exc).__name__}: {exc}")
+            self._record_transitions(time_ns, records)
+            return None
+        tension = self.tension.estimate(obs)
+        faults = {n: r.fault for n, r in meas.robots.items()}
+        violation = self.monitor.check(
+            spec.invariant, obs, a.state, tension, self._qp_failures, faults, spec.robots
+        )
+        if violation is not None:
+            self._record_transitions(time_ns, a.unpredictable(violation.reason))
+            return None
+        if spec.timeout_s is not None and obs.t - self.ctx.t0 >= spec.timeout_s - 0.5 * self.dt:
+            self._record_transitions(time_ns, a.unpredictable("timeout"))
+            return None
+        if result.status is SkillStatus.FAILURE:
+            reason = f"skill-failure:{result.message}" if result.message else "skill-failure"
+            self._record_transitions(time_ns, a.unpredictable(reason))
+            return result.command
+        if result.status is SkillStatus.SUCCESS:
+            self._record_transitions(time_ns, a.planned())
+        return result.command
+
+    def _manual_check(self, time_ns: int, obs: Observation) -> None:
+        a = self.automaton
+        if a.mode is not Mode.MANUAL or self.manual_invariant is None:
+            return
+        tension = self.tension.estimate(obs)
+        v = self.monitor.check(self.manual_invariant, obs, a.state, tension, {}, {})
+        if v is not None:
+            self._record_transitions(time_ns, a.operator("lock"))
+            self.recorder.event(time_ns, "manual-workspace", "unpredictable", a.state, v.reason)
+
+    def tick(self) -> bool:
+        """Run one control tick; return False once the run is over."""
+        meas, obs = self._observe()
+        self._obs = obs
+        time_ns = self.tick_index * self.period_ns
+        a = self.automaton
+        if self.tick_index == 0:
+            self._record_transitions(time_ns, a.start())
+        self._handle_operator(time_ns, obs)
+        command = self._skill_tick(time_ns, obs, meas)
+        self._manual_check(time_ns, obs)
+        torques: dict[str, Any] = {}
+        modes: dict[str, str] = {}
+        tools: dict[str, Any] = {}
+        for name in self.robots:
+            mode = a.mode_of(name)
+            rc = command.robots.get(name) if command is not None else None
+            if rc is not None and rc.tool is not None:
+                tools[name] = rc.tool
+            torques[name] = self.controller.torque(name, mode, obs.robots[name], rc)
+            modes[name] = mode.value
+        tension = self.tension.estimate(obs)
+        self.monitor.max_tension_N = max(self.monitor.max_tension_N, *tension.values())
+        truth = self.backend.ground_truth()
+        self.recorder.tick(time_ns, obs, torques, modes, tension, truth)
+        if a.finished:
+            self.stop_reason = a.state
+            return False
+        if self._stuck():
+            self.stop_reason = "locked, waiting for an operator who has no more events"
+            return False
+        if obs.t >= self.max_time_s:
+            self.stop_reason = f"time limit {self.max_time_s:g} s reached"
+            return False
+        applied = {
+            name: RobotCommand(CommandMode.TORQUE, tau=torques[name], tool=tools.get(name))
+            for name in self.robots
+        }
+        self.backend.apply(Command(applied))
+        self.backend.step()
+        self.tick_index += 1
+        if self.progress is not None and self.tick_index % 100 == 0:
+            self.progress(obs.t, self.max_time_s)
+        return True
+
+    def _stuck(self) -> bool:
+        """Locked and waiting, for 10 ticks, with no timed operator event left."""
+        a = self.automaton
+        if not a.waiting_for_operator or a.mode is not Mode.LOCK:
+            self._waiting_ticks = 0
+            return False
+        self._waiting_ticks += 1
+        if self._waiting_ticks < 10:
+            return False
+        src = self.operator_source
+        if src is None:
+            return True
+        exhausted = getattr(src, "exhausted", None)
+        return bool(exhausted) if exhausted is not None else False
+
+    # ----------------------------------------------------------------- the run
+    def run(self, procedure: str, backend_name: str) -> RunSummary:
+        """Tick until the run ends; return the summary (the recorder is closed)."""
+        t0 = time.perf_counter()
+        try:
+            while self.tick():
+                pass
+        finally:
+            self.wall_time_s = time.perf_counter() - t0
+            self.recorder.close()
+        return self.summary(procedure, backend_name)
+
+    def summary(self, procedure: str, backend_name: str) -> RunSummary:
+        """The run's summary so far."""
+        a = self.automaton
+        outcome = a.outcome.value if a.outcome is not None else "failed"
+        sim = self.tick_index * self.dt
+        wall = self.wall_time_s
+        metrics = dict(self.metrics)
+        if self.stop_reason and not a.finished:
+            metrics["stopped"] = self.stop_reason
+        return RunSummary(
+            procedure=procedure,
+            outcome=outcome,
+            final_state=a.state,
+            sim_time_s=sim,
+            wall_time_s=wall,
+            real_time_factor=sim / wall if wall > 0 else 0.0,
+            control_rate_hz=self.rate,
+            max_tension_N=self.monitor.max_tension_N,
+            tension_limit_N=self.tension_limit_N,
+            violations=[asdict(v) for v in self.monitor.violations],
+            retries=a.retries_total,
+            operator_events=self.operator_events,
+            metrics=metrics,
+            knot=None,
+            seed=self.seed,
+            backend=backend_name,
+            ticks=self.tick_index + 1,
+        )
