@@ -236,7 +236,9 @@ class ScriptedOperator:
     @property
     def exhausted(self) -> bool:
         """True when no timed event is left (conditional ones may still fire)."""
-        return all(f or spec.at is None for f, (spec, _) in zip(self._fired, self._events))
+        return all(
+            f or spec.at is None for f, (spec, _) in zip(self._fired, self._events, strict=True)
+        )
 
     def poll(self, t: float, state: str, step: str | None, mode: str) -> list[OperatorEvent]:
         """Events that fire at time ``t`` [s] in automaton state ``state``."""
