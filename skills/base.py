@@ -61,11 +61,14 @@ class Skill(ABC):
     Attributes:
         name: the registered name used in YAML (``"move-constrained"``).
         Params: the pydantic parameter model (``extra="forbid"``).
+        tools: the tool types the skill's ``robot`` must carry (``None``: any);
+            checked by the dry-run.
         params: this instance's validated parameters.
     """
 
     name: ClassVar[str]
     Params: ClassVar[type[SkillParams]]
+    tools: ClassVar[tuple[str, ...] | None] = None
 
     def __init__(self, params: SkillParams) -> None:
         """Keep the validated parameters.
