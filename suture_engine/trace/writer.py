@@ -176,6 +176,7 @@ class TraceWriter:
         self._mcap.start(profile="", library=LIBRARY_PREFIX + meta.engine_version)
         self._sync()
         self.write(channels.META, 0, meta.to_message())
+        self.flush()  # a killed run's trace still says what it is
 
     # -- writing ----------------------------------------------------------------------------
 
