@@ -137,7 +137,7 @@ class QPWeights:
 
     task: Array = field(default_factory=lambda: np.array([1.0, 1.0, 1.0, 1e-3]))
     damping: float = 1e-4
-    slack: float = 1e4
+    slack: float = 1e6
     position_gain: float = 10.0
     fixture_gain: float = 20.0
 
@@ -490,6 +490,14 @@ class ConstrainedQP:
         A[_N:, :_N] = self._G
         A[_N:, _N:] = np.eye(self._m_soft)
         return P, self._q.copy(), A, self._l.copy(), self._u.copy()
+
+    def update_settings(self, **settings: Any) -> None:
+        """Change OSQP settings that may change after setup (``max_iter``, ``time_limit``...).
+
+        Args:
+            settings: OSQP setting names and values.
+        """
+        self._solver.update_settings(**settings)
 
     def hold(self) -> Array:
         """The last command that a successful solve produced [rad/s, ..., m/s]."""

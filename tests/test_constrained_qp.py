@@ -1,0 +1,237 @@
+"""The move-constrained QP: agreement with independent solvers, constraints, slack, warm path."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import minimize
+
+from suture_engine.control.constrained_qp import (
+    INF,
+    ConstrainedQP,
+    JointLimits,
+    QPError,
+    QPWeights,
+    extension_rate_bound,
+)
+from suture_engine.control.fixtures import Circle, Cone, Line, Plane
+from suture_engine.robot import endobot
+
+EXIT = np.array([0.02, 0.0, 0.1])
+TIGHT = {"eps_abs": 1e-9, "eps_rel": 1e-9, "max_iter": 50000, "time_limit": 10.0}
+# Closed-loop tests check behaviour, not speed: a loaded CI machine must not trip the cap.
+NO_CAP = {"time_limit": 10.0}
+
+
+def _pose(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    pose = endobot.forward_kinematics(q)
+    return np.r_[pose.position, pose.roll], endobot.jacobian(q)
+
+
+def _scipy_oracle(qp: ConstrainedQP) -> np.ndarray:
+    """The same QP solved by scipy's SLSQP from the dense matrices."""
+    P, q, A, lo, hi = qp.matrices()
+    eq = [i for i in range(qp.m) if lo[i] == hi[i]]
+    cons = []
+    if eq:
+        cons.append({"type": "eq", "fun": lambda z: A[eq] @ z - hi[eq], "jac": lambda z: A[eq]})
+    up = [i for i in range(qp.m) if i not in eq and hi[i] < INF / 2]
+    dn = [i for i in range(qp.m) if i not in eq and lo[i] > -INF / 2]
+    if up:
+        cons.append({"type": "ineq", "fun": lambda z: hi[up] - A[up] @ z, "jac": lambda z: -A[up]})
+    if dn:
+        cons.append({"type": "ineq", "fun": lambda z: A[dn] @ z - lo[dn], "jac": lambda z: A[dn]})
+    res = minimize(
+        lambda z: 0.5 * z @ P @ z + q @ z,
+        np.zeros(qp.n),
+        jac=lambda z: P @ z + q,
+        constraints=cons,
+        method="SLSQP",
+        options={"ftol": 1e-15, "maxiter": 2000},
+    )
+    assert res.success, res.message
+    return np.asarray(res.x)
+
+
+def _random_instance(
+    rng: np.random.Generator, fixture_point: np.ndarray, spread: float = 0.003
+) -> dict:
+    x = np.r_[fixture_point + rng.normal(scale=spread, size=3), rng.uniform(-1, 1)]
+    q = endobot.inverse_kinematics(x[:3], x[3])
+    x, J = _pose(q)
+    return {
+        "q": q,
+        "x": x,
+        "jacobian": J,
+        "v_target": rng.normal(scale=0.05, size=4),
+        "x_target": x + rng.normal(scale=0.01, size=4),
+        "exit_point": EXIT,
+        "extension_rate_max": 0.01,
+    }
+
+
+@pytest.mark.parametrize(
+    "fixtures",
+    [
+        (Line(direction=[1.0, 1.0, 2.0]),),
+        (Line(direction=[1.0, 1.0, 2.0]), Cone(axis=[0.0, 0.0, 1.0], half_angle=0.62)),
+        (Circle(center=[0.0, 0.0, 0.15], radius=0.05),),
+        (Plane(point=[0.0, 0.0, 0.12], normal=[0.0, 0.2, 1.0]),),
+    ],
+    ids=["line", "line+cone", "circle", "plane"],
+)
+def test_solution_agrees_with_scipy_on_random_instances(fixtures: tuple) -> None:
+    rng = np.random.default_rng(7)
+    qp = ConstrainedQP(fixtures, extension_rate=True, settings=TIGHT)
+    for _ in range(12):
+        s = rng.uniform(0.05, 0.2)
+        if isinstance(fixtures[0], Circle):
+            th = rng.uniform(0, 2 * np.pi)
+            base = np.array([0.05 * np.cos(th), 0.05 * np.sin(th), 0.15])
+        elif isinstance(fixtures[0], Plane):
+            base = np.array([rng.uniform(-0.05, 0.05), rng.uniform(-0.05, 0.05), 0.12])
+        else:
+            base = s * np.array([1.0, 1.0, 2.0]) / np.sqrt(6)
+        inst = _random_instance(rng, base)
+        res = qp.solve(**inst)
+        assert res.solved, res.status
+        z = _scipy_oracle(qp)
+        np.testing.assert_allclose(res.qdot, z[:4], atol=2e-5)
+
+
+def test_solution_agrees_with_cvxpy() -> None:
+    cp = pytest.importorskip("cvxpy")
+    rng = np.random.default_rng(11)
+    qp = ConstrainedQP(
+        [Line(direction=[1.0, 1.0, 2.0]), Cone(axis=[0.0, 0.0, 1.0], half_angle=0.62)],
+        extension_rate=True,
+        settings=TIGHT,
+    )
+    for _ in range(6):
+        inst = _random_instance(rng, rng.uniform(0.05, 0.2) * np.array([1, 1, 2]) / np.sqrt(6))
+        res = qp.solve(**inst)
+        P, q, A, lo, hi = qp.matrices()
+        z = cp.Variable(qp.n)
+        fin_hi, fin_lo = hi < INF / 2, lo > -INF / 2
+        cons = [A[fin_hi] @ z <= hi[fin_hi], A[fin_lo] @ z >= lo[fin_lo]]
+        prob = cp.Problem(cp.Minimize(0.5 * cp.quad_form(z, cp.psd_wrap(P)) + q @ z), cons)
+        prob.solve(solver=cp.CLARABEL)  # an interior-point solver: independent of OSQP
+        np.testing.assert_allclose(res.qdot, z.value[:4], atol=1e-5)
+
+
+def test_constraints_hold_in_the_solution() -> None:
+    rng = np.random.default_rng(5)
+    line = Line(direction=[1.0, 1.0, 2.0])
+    limits = JointLimits(qd_max=np.array([0.5, 0.5, 1.0, 0.05]))
+    weights = QPWeights(fixture_gain=20.0)
+    qp = ConstrainedQP([line], limits=limits, weights=weights, extension_rate=True, settings=NO_CAP)
+    for _ in range(30):
+        on_line = rng.uniform(0.05, 0.2) * np.array([1, 1, 2]) / np.sqrt(6)
+        inst = _random_instance(rng, on_line, spread=2e-4)
+        inst["v_target"] = rng.normal(scale=0.2, size=4)  # pushes against every bound
+        res = qp.solve(**inst)
+        assert res.solved
+        assert res.slack_max < 1e-5  # feasible: the rows hold to the solver tolerance
+        qd = res.qdot
+        assert np.all(np.abs(qd) <= limits.qd_max + 1e-5)
+        x, J = inst["x"], inst["jacobian"]
+        # C-dot = -k C (6.3-6.4) along the solution.
+        np.testing.assert_allclose(line.jacobian(x) @ J @ qd, -20.0 * line.value(x), atol=1e-5)
+        d = x[:3] - EXIT
+        assert (d / np.linalg.norm(d)) @ J[:3] @ qd <= 0.01 + 1e-5
+        assert "line[0]" in res.active and "line[1]" in res.active
+
+
+def test_infeasible_extension_bound_takes_slack_and_reports_it() -> None:
+    # The tension is over its bound: the suture must shorten at 1 m/s, which the joint
+    # speed limits forbid. The hard row gives way through its slack, and says so.
+    limits = JointLimits(qd_max=np.array([0.5, 0.5, 1.0, 0.05]))
+    qp = ConstrainedQP([], limits=limits, extension_rate=True, settings=NO_CAP)
+    q = np.array([0.1, 0.2, 0.0, 0.12])
+    x, J = _pose(q)
+    res = qp.solve(q, x, J, exit_point=np.array([0.0, 0.0, 0.02]), extension_rate_max=-1.0)
+    assert res.solved, res.status
+    assert res.slack_max > 0.5
+    assert "extension_rate" in res.active
+    d = x[:3] - np.array([0.0, 0.0, 0.02])
+    ldot = (d / np.linalg.norm(d)) @ J[:3] @ res.qdot
+    assert ldot < -0.04  # shortens as fast as the limits allow
+    assert np.all(np.abs(res.qdot) <= limits.qd_max + 1e-6)
+
+
+def test_failure_holds_last_command_and_counts() -> None:
+    qp = ConstrainedQP([Line(direction=[1.0, 1.0, 2.0])], settings=NO_CAP)
+    q = endobot.inverse_kinematics(0.1 * np.array([1, 1, 2]) / np.sqrt(6), 0.0)
+    x, J = _pose(q)
+    good = qp.solve(q, x, J, v_target=np.array([0.01, 0.01, 0.02, 0.1]))
+    assert good.solved and qp.failures == 0
+    qp.update_settings(max_iter=1, check_termination=1)
+    bad = qp.solve(q, x, J, v_target=np.array([-0.03, -0.03, -0.06, -0.5]))
+    assert not bad.solved
+    assert bad.status != "solved"
+    np.testing.assert_array_equal(bad.qdot, good.qdot)
+    bad2 = qp.solve(q, x, J, v_target=np.array([0.03, 0.03, 0.06, 0.5]))
+    assert not bad2.solved
+    assert qp.failures == 2 and qp.consecutive_failures == 2
+    qp.update_settings(max_iter=4000)
+    assert qp.solve(q, x, J).solved
+    assert qp.consecutive_failures == 0 and qp.failures == 2
+
+
+def test_warm_path_never_sets_up_twice(monkeypatch: pytest.MonkeyPatch) -> None:
+    import osqp
+
+    calls = {"setup": 0}
+    real_setup = osqp.OSQP.setup
+
+    def counting_setup(self, *args, **kwargs):  # type: ignore[no-untyped-def]
+        calls["setup"] += 1
+        return real_setup(self, *args, **kwargs)
+
+    monkeypatch.setattr(osqp.OSQP, "setup", counting_setup)
+    line = Line(direction=[1.0, 1.0, 2.0])
+    qp = ConstrainedQP([line], extension_rate=True, settings=NO_CAP)
+    q = endobot.inverse_kinematics(0.1 * np.array([1, 1, 2]) / np.sqrt(6), 0.0)
+    target = np.r_[0.15 * np.array([1, 1, 2]) / np.sqrt(6), 0.5]
+    for _ in range(1500):
+        x, J = _pose(q)
+        res = qp.solve(q, x, J, x_target=target, exit_point=EXIT, extension_rate_max=0.5)
+        assert res.solved
+        q = q + 1e-3 * res.qdot
+    assert calls["setup"] == 1
+    x, _ = _pose(q)
+    # Tracked the target along the line and stayed on it, warm-started every tick.
+    assert np.linalg.norm(x - target) < 1e-3
+    assert np.abs(line.value(x)).max() < 1e-6
+
+
+def test_joint_limit_and_singularity_margin_hold_in_closed_loop() -> None:
+    limits = JointLimits(q2_margin=0.3, q4_min=0.05)
+    qp = ConstrainedQP([], limits=limits, settings=NO_CAP)
+    q = np.array([0.0, 1.0, 0.0, 0.1])
+    # Target straight above the RCM sideways: pulls q2 towards pi/2 and q4 towards 0.
+    target = np.array([0.2, 0.0, 0.0, 0.0])
+    inward = np.array([0.0, 0.0, 0.0, 0.0])
+    for k in range(3000):
+        x, J = _pose(q)
+        tgt = target if k < 1500 else inward
+        res = qp.solve(q, x, J, x_target=tgt)
+        assert res.solved
+        q = q + 1e-3 * res.qdot
+        assert q[1] <= np.pi / 2 - 0.3 + 1e-3
+        assert q[3] >= 0.05 - 1e-4
+        assert np.all(q <= limits.q_max + 1e-6) and np.all(q >= limits.q_min - 1e-6)
+
+
+def test_extension_rate_bound_is_4_11() -> None:
+    assert extension_rate_bound(3.0, 1.0, 200.0) == pytest.approx(0.01)
+    with pytest.raises(QPError):
+        extension_rate_bound(3.0, 1.0, 0.0)
+
+
+def test_bad_limits_are_typed_errors() -> None:
+    with pytest.raises(QPError) as err:
+        JointLimits(q_min=np.zeros(4), q_max=np.zeros(4))
+    assert err.value.field == "q_min"
+    with pytest.raises(QPError):
+        QPWeights(task=np.array([1.0, -1.0, 1.0, 1.0]))
