@@ -6,7 +6,7 @@ from typing import Any, ClassVar
 
 from pydantic import Field
 
-from skills.base import Skill, SkillNotAvailable, SkillParams
+from skills.base import Skill, SkillParams
 from suture_engine.language.refs import RoleRef
 from suture_engine.language.units import Duration
 
@@ -28,6 +28,44 @@ class Hold(Skill):
     name: ClassVar[str] = "hold"
     Params: ClassVar[type[SkillParams]] = HoldParams
 
+    def __init__(self, params: SkillParams) -> None:
+        super().__init__(params)
+        self._robot = ""
+        self._q: Any = None
+        self._t0 = 0.0
+
+    def start(self, ctx: Any) -> None:
+        """Capture the robot's current joint positions x_cp [rad, m] (4.44).
+
+        Args:
+            ctx: the :class:`suture_engine.runtime.context.SkillContext`.
+        """
+        p = self.params
+        assert isinstance(p, HoldParams)
+        self._robot = ctx.robot(p.robot)
+        self._q = ctx.start.robots[self._robot].q
+        self._t0 = ctx.t0
+
     def step(self, ctx: Any, obs: Any) -> Any:
-        """Not available yet: running arrives with the runtime work."""
-        raise SkillNotAvailable(self.name)
+        """Regulate the captured pose; succeed once ``duration`` [s] has passed.
+
+        Args:
+            ctx: the skill context.
+            obs: this tick's :class:`suture_engine.runtime.observation.Observation`.
+
+        Returns:
+            A :class:`suture_engine.runtime.observation.StepResult`.
+        """
+        from suture_engine.runtime.observation import (
+            Command,
+            RobotCommand,
+            SkillStatus,
+            StepResult,
+        )
+
+        p = self.params
+        assert isinstance(p, HoldParams)
+        command = Command({self._robot: RobotCommand.position(self._q)})
+        if p.duration is not None and obs.t - self._t0 >= p.duration - 0.5 * ctx.dt:
+            return StepResult(command, SkillStatus.SUCCESS)
+        return StepResult(command)

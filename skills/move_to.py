@@ -6,7 +6,7 @@ from typing import Any, ClassVar
 
 from pydantic import Field
 
-from skills.base import Skill, SkillNotAvailable, SkillParams
+from skills.base import Skill, SkillParams
 from suture_engine.language.refs import PointRef, RoleRef
 from suture_engine.language.units import Angle, Length, Position, Speed
 
@@ -21,6 +21,10 @@ class MoveToParams(SkillParams):
     target: PointRef | Position
     """Where the tool tip goes: a named tissue point of the scene, or (x, y, z) in
     the world frame [m]."""
+    relative_to: RoleRef | None = None
+    """When set, ``target`` is an (x, y, z) offset [m] in the world frame from that
+    role's tool tip (e.g. "touch the front of the grasper stem", algorithm 1 step 3);
+    such targets are not checked for reachability before running."""
     offset: Position = (0.0, 0.0, 0.0)
     """Added to the target, in the world frame [m] (e.g. to stop above the tissue)."""
     roll: Angle | None = None
@@ -32,11 +36,120 @@ class MoveToParams(SkillParams):
 
 
 class MoveTo(Skill):
-    """Move the tool tip to ``target + offset`` at ``speed`` [m/s]."""
+    """Move the tool tip to ``target + offset`` at ``speed`` [m/s].
+
+    The goal joints come from the closed-form inverse kinematics (3.14-3.17) of
+    the goal expressed in the robot's base frame; the joints follow a
+    rest-to-rest minimum-jerk (quintic) trajectory whose duration makes the
+    straight-line peak tool speed ``speed``. The skill succeeds once the
+    trajectory is over and the measured tool tip is within ``tolerance`` [m] of
+    the goal, and fails if it is not there ``SETTLE_S`` [s] later.
+    """
 
     name: ClassVar[str] = "move-to"
     Params: ClassVar[type[SkillParams]] = MoveToParams
 
+    SETTLE_S: ClassVar[float] = 1.0
+    """Time allowed after the trajectory's end to reach the tolerance [s]."""
+
+    def __init__(self, params: SkillParams) -> None:
+        super().__init__(params)
+        self._robot = ""
+        self._traj: Any = None
+        self._goal: Any = None
+        self._base: Any = None
+        self._t0 = 0.0
+
+    def _target_world(self, ctx: Any) -> tuple[float, float, float]:
+        from suture_engine.runtime.trajectory import tool_tip_world
+
+        p = self.params
+        assert isinstance(p, MoveToParams)
+        if isinstance(p.target, str):
+            points = ctx.scene.tissue.points if ctx.scene is not None else {}
+            if p.target not in points:
+                raise KeyError(f"no tissue point named {p.target!r}; known: {sorted(points)}")
+            base = points[p.target]
+        else:
+            base = p.target
+        if p.relative_to is not None:
+            other = ctx.robot(p.relative_to)
+            tip = tool_tip_world(ctx.start.robots[other].q, ctx.base_poses.get(other))
+            base = tuple(float(tip[i]) + float(base[i]) for i in range(3))
+        return (
+            float(base[0]) + p.offset[0],
+            float(base[1]) + p.offset[1],
+            float(base[2]) + p.offset[2],
+        )
+
+    def start(self, ctx: Any) -> None:
+        """Plan the trajectory from the measured joints to the goal.
+
+        Args:
+            ctx: the :class:`suture_engine.runtime.context.SkillContext`.
+
+        Raises:
+            UnreachablePose: the goal is at the RCM.
+            KeyError: an unknown tissue point or role.
+        """
+        import numpy as np
+
+        from suture_engine.robot.kinematics import inverse_kinematics
+        from suture_engine.runtime.trajectory import (
+            MinJerk,
+            min_jerk_duration,
+            tool_tip_world,
+            world_to_base,
+        )
+
+        p = self.params
+        assert isinstance(p, MoveToParams)
+        self._robot = ctx.robot(p.robot)
+        self._base = ctx.base_poses.get(self._robot)
+        q0 = np.array(ctx.start.robots[self._robot].q)
+        self._goal = np.array(self._target_world(ctx))
+        roll = float(q0[2]) if p.roll is None else float(p.roll)
+        q1 = inverse_kinematics(world_to_base(self._goal, self._base), roll)
+        distance = float(np.linalg.norm(self._goal - tool_tip_world(q0, self._base)))
+        self._traj = MinJerk(q0, q1, min_jerk_duration(distance, p.speed, minimum=0.1))
+        self._t0 = ctx.t0
+
     def step(self, ctx: Any, obs: Any) -> Any:
-        """Not available yet: running arrives with the runtime work."""
-        raise SkillNotAvailable(self.name)
+        """Track the trajectory; report success at the goal, failure if it is not reached.
+
+        Args:
+            ctx: the skill context.
+            obs: this tick's :class:`suture_engine.runtime.observation.Observation`.
+
+        Returns:
+            A :class:`suture_engine.runtime.observation.StepResult`.
+        """
+        import numpy as np
+
+        from suture_engine.runtime.observation import (
+            Command,
+            RobotCommand,
+            SkillStatus,
+            StepResult,
+        )
+        from suture_engine.runtime.trajectory import tool_tip_world
+
+        p = self.params
+        assert isinstance(p, MoveToParams)
+        t = obs.t - self._t0
+        sample = self._traj(t)
+        command = Command({self._robot: RobotCommand.position(sample.q, sample.qd)})
+        if not sample.done:
+            return StepResult(command)
+        tip = tool_tip_world(obs.robots[self._robot].q, self._base)
+        error = float(np.linalg.norm(tip - self._goal))
+        if error <= p.tolerance:
+            return StepResult(command, SkillStatus.SUCCESS)
+        if t >= self._traj.duration + self.SETTLE_S:
+            return StepResult(
+                command,
+                SkillStatus.FAILURE,
+                f"tool tip {error * 1e3:.2f} mm from the goal "
+                f"(tolerance {p.tolerance * 1e3:.2f} mm)",
+            )
+        return StepResult(command)

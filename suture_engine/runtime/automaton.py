@@ -102,10 +102,12 @@ class FailurePolicy:
     Attributes:
         retry: how many times the previous step (e^_{i-1}) is run again from NOT-BE.
         then: what happens when the retries are used up.
+        goto: instead of ``then``, go to this step or terminal (``on: {failed: NAME}``).
     """
 
     retry: int = 0
     then: Then = Then.LOCK
+    goto: str | None = None
 
     def __post_init__(self) -> None:
         if self.retry < 0:
@@ -259,6 +261,11 @@ class Automaton:
                 raise AutomatonError(
                     f"step {step.name!r}: done leads to unknown state {step.on_done!r}", step.name
                 )
+            goto = step.policy.goto
+            if goto is not None and goto not in names:
+                raise AutomatonError(
+                    f"step {step.name!r}: failed leads to unknown state {goto!r}", step.name
+                )
 
     def _states(self) -> list[Any]:
         children: list[str] = []
@@ -286,6 +293,12 @@ class Automaton:
                 m.add_transition("retry", src, dest, conditions=cond, before=self._before_enter)
             for src in ["lock", "manual"] + [f"autonomous/{notbe(s)}" for s in steps]:
                 m.add_transition("resume", src, dest, conditions=cond, before=self._before_enter)
+        for s in steps:
+            goto = self.plan.steps[s].policy.goto
+            if goto is not None:
+                full = f"autonomous/{goto}" if goto in self.plan.steps else goto
+                src = f"autonomous/{notbe(s)}"
+                m.add_transition("recover", src, full, before=self._before_enter)
         m.add_transition("lock", [s for s in live if s != "lock"], "lock")
         m.add_transition("manual", [s for s in live if s != "manual"], "manual")
         m.add_transition("abort", ["idle", *live], ABORTED)
@@ -444,6 +457,10 @@ class Automaton:
             self.retries_total += 1
             target = self._previous.get(step) or step
             return self._enter_step("retry", "policy", target, reason=f"retry:{step}")
+        if policy.goto is not None:
+            if policy.goto in self.plan.steps:
+                return self._enter_step("recover", "policy", policy.goto, f"failed:{step}")
+            return [self._fire("recover", "policy", f"failed:{step}")]
         if policy.then is Then.LOCK:
             self.waiting_for_operator = True
             return [self._fire("lock", "policy", f"exhausted:{step}")]

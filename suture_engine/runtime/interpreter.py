@@ -241,7 +241,14 @@ class Interpreter:
         tension = self.tension.estimate(obs)
         faults = {n: r.fault for n, r in meas.robots.items()}
         violation = self.monitor.check(
-            spec.invariant, obs, a.state, tension, self._qp_failures, faults, spec.robots
+            spec.invariant,
+            obs,
+            a.state,
+            tension,
+            self._qp_failures,
+            faults,
+            spec.robots,
+            self.ctx.base_poses,
         )
         if violation is not None:
             self._record_transitions(time_ns, a.unpredictable(violation.reason))

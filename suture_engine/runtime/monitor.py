@@ -6,8 +6,10 @@ invariants checked here are the ones a procedure declares:
 
 - a tension bound: the tension estimated from the base force/torque sensor
   stays below ``max_tension_N`` [N];
+- a force bound: the magnitude of the tared base force below ``max_force_N`` [N];
 - a workspace box (4.45): joint positions inside ``[q_min, q_max]``
-  [rad, rad, rad, m];
+  [rad, rad, rad, m], and the tool tip (world frame) inside
+  ``[workspace_min, workspace_max]`` [m];
 - a singularity margin (3.22-3.23): |q2| stays ``margin`` [rad] away from
   90 deg and the insertion q4 stays above ``insertion_margin_m`` [m];
 - QP failures: at most ``max_qp_failures`` consecutive failed solves;
@@ -19,6 +21,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -38,6 +41,9 @@ class Invariant:
         singularity_margin_rad: least distance of q2 from +-90 deg [rad] (3.22).
         insertion_margin_m: least insertion q4 [m] (q4 = 0 is singular, 3.23).
         max_qp_failures: consecutive failed QP solves tolerated.
+        max_force_N: bound on the tared base-force magnitude [N].
+        workspace_min: lower corner of the tool-tip box, world frame [m] (4.45).
+        workspace_max: upper corner of the tool-tip box, world frame [m] (4.45).
     """
 
     max_tension_N: float | None = None
@@ -46,6 +52,9 @@ class Invariant:
     singularity_margin_rad: float | None = None
     insertion_margin_m: float | None = None
     max_qp_failures: int | None = None
+    max_force_N: float | None = None
+    workspace_min: tuple[float, float, float] | None = None
+    workspace_max: tuple[float, float, float] | None = None
 
 
 @dataclass(frozen=True)
@@ -117,6 +126,7 @@ class Monitor:
         qp_failures: Mapping[str, int],
         sensor_faults: Mapping[str, bool],
         robots: tuple[str, ...] = (),
+        base_poses: Mapping[str, Any] | None = None,
     ) -> Violation | None:
         """Return the first violation of ``invariant`` this tick (also recorded), or None.
 
@@ -128,6 +138,8 @@ class Monitor:
             qp_failures: consecutive QP failures per robot.
             sensor_faults: per robot, whether a sensor dropped out this tick.
             robots: the robots the step drives (empty: all).
+            base_poses: robot -> (base position [m], row-major 3x3 rotation) for the
+                tool-tip workspace box.
         """
         if tension:
             self.max_tension_N = max(self.max_tension_N, max(tension.values()))
@@ -140,11 +152,36 @@ class Monitor:
             if invariant is None:
                 continue
             found = self._check_robot(invariant, obs, state, name, tension, qp_failures)
+            if found is None and invariant.workspace_min is not None:
+                found = self._check_tip(invariant, obs, state, name, (base_poses or {}).get(name))
             if found is not None:
                 break
         if found is not None:
             self.violations.append(found)
         return found
+
+    @staticmethod
+    def _check_tip(
+        inv: Invariant, obs: Observation, state: str, name: str, base: Any
+    ) -> Violation | None:
+        from suture_engine.robot.kinematics import forward_kinematics
+
+        robot = obs.robots.get(name)
+        if robot is None or inv.workspace_min is None or inv.workspace_max is None:
+            return None
+        tip = np.asarray(forward_kinematics(robot.q).position)
+        if base is not None:
+            tip = np.asarray(base[0]) + np.asarray(base[1]).reshape(3, 3) @ tip
+        for i in range(3):
+            if tip[i] < inv.workspace_min[i]:
+                return Violation(
+                    obs.t, obs.tick, state, name, "workspace", tip[i], inv.workspace_min[i]
+                )
+            if tip[i] > inv.workspace_max[i]:
+                return Violation(
+                    obs.t, obs.tick, state, name, "workspace", tip[i], inv.workspace_max[i]
+                )
+        return None
 
     @staticmethod
     def _check_robot(
@@ -162,6 +199,8 @@ class Monitor:
             return Violation(
                 obs.t, obs.tick, state, name, "tension", tension[name], inv.max_tension_N
             )
+        if inv.max_force_N is not None and tension.get(name, 0.0) > inv.max_force_N:
+            return Violation(obs.t, obs.tick, state, name, "force", tension[name], inv.max_force_N)
         q = robot.q
         if inv.q_min is not None:
             for i in range(q.shape[0]):

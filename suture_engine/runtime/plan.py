@@ -1,0 +1,159 @@
+"""Compile a loaded procedure into the automaton's :class:`Plan`.
+
+Skill states become steps (a factory building a fresh skill on each entry,
+their ``done`` target, failure policy, timeout, invariant and the robot they
+drive); terminal states become terminals with their outcome. A ``use:`` state
+is inlined: its sub-procedure's states are named ``<state>.<sub-state>``, the
+sub-procedure's ``succeeded`` terminals lead to the ``use:`` state's ``done``
+target, and its other terminals end the run with their outcome.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from suture_engine.runtime.automaton import (
+    AutomatonError,
+    FailurePolicy,
+    Outcome,
+    Plan,
+    StepSpec,
+    Then,
+)
+from suture_engine.runtime.monitor import Invariant
+
+__all__ = ["compile_procedure", "convert_invariant"]
+
+
+def convert_invariant(inv: Any) -> Invariant | None:
+    """The monitor's :class:`Invariant` from a procedure state's ``invariant`` (SI)."""
+    if inv is None:
+        return None
+    ws = getattr(inv, "workspace", None)
+    return Invariant(
+        max_tension_N=getattr(inv, "max_tension", None),
+        max_force_N=getattr(inv, "max_force", None),
+        singularity_margin_rad=getattr(inv, "singularity_margin", None),
+        workspace_min=tuple(ws.min) if ws is not None else None,
+        workspace_max=tuple(ws.max) if ws is not None else None,
+    )
+
+
+def _policy(value: Any) -> FailurePolicy:
+    if value is None:
+        return FailurePolicy()
+    if isinstance(value, str):
+        return FailurePolicy(goto=value)
+    retry = getattr(value, "retry", 0)
+    then = getattr(value, "then", "lock")
+    return FailurePolicy(retry=int(retry), then=Then(then))
+
+
+def _robots(params: Any, roles: Mapping[str, str]) -> tuple[str, ...]:
+    out: list[str] = []
+    for field in ("robot", "robots"):
+        value = getattr(params, field, None)
+        values = [value] if isinstance(value, str) else list(value or [])
+        for role in values:
+            name = roles.get(role, role)
+            if name not in out:
+                out.append(name)
+    return tuple(out)
+
+
+def _factory(skill_name: str, params: Any) -> Any:
+    from skills.registry import get_skill
+
+    cls = get_skill(skill_name)
+    return lambda: cls(params)
+
+
+def _inline(
+    proc: Any,
+    prefix: str,
+    on_success: str | None,
+    roles: Mapping[str, str],
+    steps: dict[str, StepSpec],
+    terminals: dict[str, Outcome],
+) -> str:
+    """Add ``proc``'s states; return the full name of its entry step."""
+    states: Mapping[str, Any] = proc.states
+    entry: dict[str, str] = {}
+    busy: set[str] = set()
+
+    def resolve(name: str) -> str:
+        if name not in states:
+            raise AutomatonError(f"{prefix or 'procedure'}: unknown state {name!r}", prefix + name)
+        st = states[name]
+        if st.outcome is not None:
+            if on_success is not None and st.outcome == "succeeded":
+                return on_success
+            return prefix + name
+        if st.use is not None:
+            return use_entry(name)
+        return prefix + name
+
+    def use_entry(name: str) -> str:
+        if name in entry:
+            return entry[name]
+        if name in busy:
+            raise AutomatonError(f"{prefix}{name}: 'use:' states lead to each other", name)
+        busy.add(name)
+        st = states[name]
+        done = st.on.get("done")
+        if not isinstance(done, str):
+            raise AutomatonError(f"state {prefix + name!r} has no 'done' target", prefix + name)
+        if not hasattr(st.use, "states"):
+            raise AutomatonError(f"state {prefix + name!r}: sub-procedure not loaded", name)
+        succ = resolve(done)
+        entry[name] = _inline(st.use, f"{prefix}{name}.", succ, roles, steps, terminals)
+        return entry[name]
+
+    for name, st in states.items():
+        if st.outcome is not None and not (on_success is not None and st.outcome == "succeeded"):
+            terminals[prefix + name] = Outcome(st.outcome)
+    for name, st in states.items():
+        if st.use is not None:
+            use_entry(name)
+    for name, st in states.items():
+        if st.skill is None:
+            continue
+        done = st.on.get("done")
+        if not isinstance(done, str):
+            raise AutomatonError(f"state {prefix + name!r} has no 'done' target", prefix + name)
+        policy = _policy(st.on.get("failed"))
+        if policy.goto is not None:
+            policy = FailurePolicy(policy.retry, policy.then, resolve(policy.goto))
+        if st.params is None:
+            raise AutomatonError(f"state {prefix + name!r}: its parameters are invalid", name)
+        steps[prefix + name] = StepSpec(
+            name=prefix + name,
+            make_skill=_factory(st.skill, st.params),
+            on_done=resolve(done),
+            policy=policy,
+            timeout_s=st.timeout,
+            invariant=convert_invariant(st.invariant),
+            robots=_robots(st.params, roles),
+        )
+    return resolve(proc.initial)
+
+
+def compile_procedure(proc: Any) -> Plan:
+    """The :class:`Plan` of a loaded :class:`suture_engine.language.procedure.Procedure`.
+
+    Raises:
+        AutomatonError: a state without a ``done`` target, an unknown target, a
+            sub-procedure that did not load.
+    """
+    roles: Mapping[str, str] = dict(proc.roles)
+    steps: dict[str, StepSpec] = {}
+    terminals: dict[str, Outcome] = {}
+    initial = _inline(proc, "", None, roles, steps, terminals)
+    robots: tuple[str, ...] = ("endobot_1", "endobot_2")
+    scene = getattr(proc, "scene", None)
+    if scene is not None and getattr(scene, "robots", None):
+        robots = tuple(scene.robots)
+    if initial not in steps:
+        raise AutomatonError(f"the initial state {proc.initial!r} is not a skill state", initial)
+    return Plan(proc.name, initial, steps, terminals, robots)
