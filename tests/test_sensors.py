@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 
 import numpy as np
@@ -59,7 +60,7 @@ def test_dropout_holds_last_value_and_flags_it() -> None:
     readings = [s.measure(t) for t in truth]
     lost = [r for r in readings if not r.fresh]
     assert 0.25 < len(lost) / len(readings) < 0.35
-    for prev, cur in zip(readings, readings[1:], strict=False):
+    for prev, cur in itertools.pairwise(readings):
         if not cur.fresh:
             np.testing.assert_array_equal(cur.values, prev.values)
         else:
