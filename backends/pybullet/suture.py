@@ -54,6 +54,10 @@ PHYSICS_RATE = 1000.0
 """Physics rate the scene is built for [Hz] (the runtime's control rate)."""
 
 _GRAVITY = 9.81
+_NEEDLE_SIM_MASS = 2e-3
+"""Simulated needle mass [kg] (mass-scaled like the thread)."""
+_NEEDLE_REAL_MASS = 5e-5
+"""Weight the needle keeps after the lift [kg] (a small curved suture needle)."""
 
 FloatArray = NDArray[np.float64]
 
@@ -432,7 +436,7 @@ class Suture:
         rot = np.array(p.getMatrixFromQuaternion(orn)).reshape(3, 3)
         tip = np.array(pos) + rot[:, 2] * prm.segment_length / 2
         self.needle_body = p.createMultiBody(
-            baseMass=2e-3,
+            baseMass=_NEEDLE_SIM_MASS,
             baseCollisionShapeIndex=col,
             basePosition=tip.tolist(),
             baseOrientation=orn,
@@ -461,9 +465,19 @@ class Suture:
             p.setCollisionFilterPair(b, self.needle_body, -1, -1, 0, physicsClientId=c)
 
     def pre_step(self) -> None:
-        """Cancel the mass-scaled part of the thread's weight; call before each step."""
+        """Cancel the mass-scaled part of the thread's and needle's weight (call every step)."""
         import pybullet as p
 
+        if self.needle_body >= 0:
+            pos, _ = p.getBasePositionAndOrientation(self.needle_body, physicsClientId=self.client)
+            p.applyExternalForce(
+                self.needle_body,
+                -1,
+                [0.0, 0.0, (_NEEDLE_SIM_MASS - _NEEDLE_REAL_MASS) * _GRAVITY],
+                pos,
+                p.WORLD_FRAME,
+                physicsClientId=self.client,
+            )
         if self._lift <= 0.0:
             return
         for b in self.bodies:

@@ -374,6 +374,7 @@ class Grasper(Tool):
         self.hook_body = p.createMultiBody(0.005, col, vis, pos, orn, physicsClientId=c)
         p.changeDynamics(self.hook_body, -1, lateralFriction=0.6, physicsClientId=c)
         p.setCollisionFilterPair(self.hook_body, self.body, -1, -1, 0, physicsClientId=c)
+        self._set_hook_collision(False)
         self._hook_drive = p.createConstraint(
             self.body,
             -1,
@@ -381,11 +382,23 @@ class Grasper(Tool):
             -1,
             p.JOINT_FIXED,
             [0, 0, 0],
-            [0, 0, self._hook_offset()],
+            [0, 0, -self._hook_offset()],
             [0, 0, 0],
             physicsClientId=c,
         )
         p.changeConstraint(self._hook_drive, maxForce=self.drive_force, physicsClientId=c)
+
+    def _set_hook_collision(self, on: bool) -> None:
+        """A retracted hook lies inside the shaft and touches nothing; an extended one does."""
+        import pybullet as p
+
+        others = list(self.suture.bodies) if self.suture is not None else []
+        if self.suture is not None and self.suture.needle_body >= 0:
+            others.append(self.suture.needle_body)
+        for b in others:
+            p.setCollisionFilterPair(
+                self.hook_body, b, -1, -1, int(on), physicsClientId=self.client
+            )
 
     def _hook_offset(self) -> float:
         """Hook position along the jaw axis [m]: retracted behind the hinge or extended."""
@@ -407,10 +420,13 @@ class Grasper(Tool):
             return
         rate = self.dt / self.hook_travel_time
         delta = self._hook_target - self.hook_extension
+        before = self.hook_extension
         self.hook_extension += max(-rate, min(rate, delta))
+        if (before < 0.5) != (self.hook_extension < 0.5):
+            self._set_hook_collision(self.hook_extension >= 0.5)
         p.changeConstraint(
             self._hook_drive,
-            jointChildPivot=[0, 0, self._hook_offset()],
+            jointChildPivot=[0, 0, -self._hook_offset()],
             maxForce=self.drive_force,
             physicsClientId=self.client,
         )

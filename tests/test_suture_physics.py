@@ -1,0 +1,232 @@
+"""Scripted physics tests of the suture, tools and tissue (hand-written trajectories, no skills).
+
+The knots here are laid loosely along hand-built knotted curves (tied by construction), then
+TIGHTENED by two graspers pulling the ends to 2 N; the tests check the knot survives, holds
+the tension, keeps its type (by the knot classifier) and that the thread stretches < 5 %.
+Tying from a straight thread by tool motion is not covered.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from backends.pybullet.scene import build_scene, pull_ends
+from backends.pybullet.suture import InvalidSutureParams, SutureParams, knotted_path
+from backends.pybullet.tools import Grasper, JawState, Stitcher
+
+
+def _classify(points):  # type: ignore[no-untyped-def]
+    topology = pytest.importorskip("suture_engine.suture.topology")
+    return topology.classify_knot(points)
+
+
+def _graspers(scene):  # type: ignore[no-untyped-def]
+    left, right = scene.tools["left"], scene.tools["right"]
+    assert isinstance(left, Grasper) and isinstance(right, Grasper)
+    return left, right
+
+
+def _tighten(knot: str, segments: int) -> tuple[object, object, object, float]:
+    scene = build_scene(
+        {"tissue": {}, "suture": {"knot": knot, "segments": segments, "knot_scale": 0.0025}}
+    )
+    try:
+        before = _classify(scene.suture.centerline())
+        left, right = _graspers(scene)
+        result = pull_ends(scene, left, right, target=2.0, hold=1.0)
+        after = _classify(scene.suture.centerline())
+        span = float(np.linalg.norm(np.diff(scene.suture.centerline()[[0, -1]], axis=0)))
+    finally:
+        scene.close()
+    return before, after, result, span
+
+
+def _check_held(result, span: float, length: float = 0.3) -> None:  # type: ignore[no-untyped-def]
+    assert result.reached, result
+    # The knot holds: the grips still transmit (almost) the full 2 N after a 1 s hold ...
+    assert result.min_hold_force > 1.8, result
+    # ... and the ends are still closer than the thread's length (a slipped knot straightens).
+    assert span < 0.97 * length
+    assert result.max_stretch < 0.05, result
+
+
+def test_overhand_knot_tightened_to_2n_stays_a_trefoil() -> None:
+    before, after, result, span = _tighten("overhand", 60)
+    assert before.type.startswith("trefoil"), before
+    assert after.type.startswith("trefoil"), after
+    assert after.determinant == 3
+    _check_held(result, span)
+
+
+@pytest.mark.slow
+def test_square_knot_tightened_to_2n_stays_square() -> None:
+    before, after, result, span = _tighten("square", 80)
+    assert before.type == "square", before
+    assert after.type == "square", after
+    assert after.determinant == 9
+    _check_held(result, span)
+
+
+@pytest.mark.slow
+def test_granny_knot_tightened_to_2n_stays_granny() -> None:
+    before, after, result, span = _tighten("granny", 80)
+    assert before.type.startswith("granny"), before
+    assert after.type.startswith("granny"), after
+    assert after.determinant == 9
+    _check_held(result, span)
+
+
+def test_straight_thread_half_newton_pull_stretch_and_tension() -> None:
+    scene = build_scene({"tissue": {}})
+    try:
+        left, right = _graspers(scene)
+        result = pull_ends(scene, left, right, target=0.5, hold=0.5)
+        line = scene.suture.centerline()
+        tensions = scene.suture.tensions()
+        stretch = scene.suture.stretch()
+    finally:
+        scene.close()
+    assert result.reached
+    # Geometric oracle: tip-to-tip distance of a taut straight thread vs its rest length.
+    span = float(np.linalg.norm(line[-1] - line[0]))
+    assert span / 0.3 - 1.0 < 0.05
+    assert stretch < 0.05
+    # Equilibrium: the joints inside the held thread carry the pull the grips apply.
+    inner = tensions[5:-5]
+    assert np.all(np.abs(inner - result.final_force) < 0.15 * result.final_force), (
+        inner,
+        result.final_force,
+    )
+
+
+def test_grasper_closes_after_travel_time_and_releases() -> None:
+    scene = build_scene({"tissue": {}})
+    try:
+        left, _ = _graspers(scene)
+        left.close()
+        steps = 0
+        while left.state is not JawState.CLOSED:
+            assert not left.holding
+            scene.step()
+            steps += 1
+        assert steps == pytest.approx(left.travel_time * 1000, abs=1)
+        assert left.holding and left.held_segment == 0
+        # Lift: the held end follows the jaws.
+        x, _ = left.pose()
+        left.set_pose((x[0], x[1], x[2] + 0.02))
+        for _ in range(300):
+            scene.step()
+        assert scene.suture.centerline()[0][2] > x[2] + 0.015
+        left.open()
+        assert not left.holding
+        for _ in range(150):
+            scene.step()
+        assert left.state is JawState.OPEN
+    finally:
+        scene.close()
+
+
+@pytest.mark.xfail(
+    reason="known defect: the extended hook does not yet lift the thread", strict=True
+)
+def test_hook_extends_and_catches_thread() -> None:
+    scene = build_scene({"tissue": {}})
+    try:
+        _, right = _graspers(scene)
+        mid = scene.suture.centerline()[20]
+        # Park the hook's barb just below the thread's middle, then lift: the thread rides up.
+        # The hook's plane (its local x-z) across the thread (world y-z).
+        yaw = (0.0, 0.0, math.sin(math.pi / 4), math.cos(math.pi / 4))
+        right.set_pose((mid[0], mid[1] - 1.25e-3, mid[2] - 10e-3), yaw)
+        for _ in range(300):
+            scene.step()
+        right.extend_hook()
+        for _ in range(int(right.hook_travel_time * 1000) + 5):
+            scene.step()
+        assert right.hook_extension == pytest.approx(1.0)
+        for k in range(600):
+            right.set_pose((mid[0], mid[1] - 1.25e-3, mid[2] - 10e-3 + 0.03 * k / 600), yaw)
+            scene.step()
+        lifted = scene.suture.centerline()[18:23, 2].max()
+        assert lifted > mid[2] + 0.01
+    finally:
+        scene.close()
+
+
+def test_stitcher_passes_needle_to_other_jaw() -> None:
+    scene = build_scene({"tissue": {}, "tools": {"st": "stitcher"}})
+    try:
+        st = scene.tools["st"]
+        assert isinstance(st, Stitcher) and st.needle_holder == 0
+        st.pass_needle()
+        for _ in range(int(st.travel_time * 1000) + 2):
+            scene.step()
+        assert st.needle_holder == 1 and not st.passing
+    finally:
+        scene.close()
+
+
+@pytest.mark.xfail(
+    reason="known defect: the thread does not slide through the channel yet", strict=True
+)
+def test_tissue_channel_friction_resists_pulling_with_4_5() -> None:
+    """Drag a threaded suture through the channel at constant speed: the extra grip force over
+    the same drag without tissue friction is F_s + F_v v (4.5)."""
+    speed = 0.01
+    free = _drag_through(0.0, 0.0, speed)
+    loaded = _drag_through(0.3, 5.0, speed)
+    assert loaded - free == pytest.approx(0.3 + 5.0 * speed, rel=0.2)
+
+
+def _drag_through(f_static: float, f_viscous: float, speed: float) -> float:
+    """Mean grip force [N] dragging a thread laid through the channel at ``speed`` [m/s]."""
+    import pybullet as p
+
+    from backends.pybullet.suture import Suture, configure_physics
+    from backends.pybullet.tissue import Tissue
+
+    c = p.connect(p.DIRECT)
+    try:
+        configure_physics(c)
+        tissue = Tissue.create(
+            c,
+            (0.0, 0.0, 0.0),
+            (-0.015, 0.0, 0.0),
+            (0.015, 0.0, 0.0),
+            depth=0.005,
+            f_static=f_static,
+            f_viscous=f_viscous,
+        )
+        path = np.vstack([[-0.2, 0.0, 0.0], tissue.channel, [0.2, 0.0, 0.0]])
+        sut = Suture.create(c, path, SutureParams(needle=False))
+        tissue.thread(sut)
+        end = sut.centerline()[-1]
+        grasper = Grasper.create(c, "g", (end[0], end[1], end[2]), suture=sut, hook=False)
+        grasper.close()
+        forces = []
+        for k in range(2000):
+            if k > 200:
+                x = end[0] + speed * (k - 200) / 1000
+                grasper.set_pose((x, end[1], end[2]))
+            grasper.step()
+            sut.pre_step()
+            tissue.pre_step()
+            p.stepSimulation(physicsClientId=c)
+            if k > 1000:
+                forces.append(grasper.grip_force())
+        assert len(tissue.inside) > 0
+        assert tissue.last_sliding_speed == pytest.approx(speed, rel=0.2)
+    finally:
+        p.disconnect(physicsClientId=c)
+    return float(np.mean(forces))
+
+
+def test_suture_params_are_validated() -> None:
+    with pytest.raises(InvalidSutureParams) as err:
+        SutureParams(n_segments=2)
+    assert err.value.name == "n_segments"
+    with pytest.raises(InvalidSutureParams):
+        knotted_path((False, True), (0, 0, 0), 0.01, length=0.1)
