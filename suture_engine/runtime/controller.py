@@ -31,22 +31,41 @@ FloatArray = NDArray[np.float64]
 class ModeController:
     """Lock / Manual / Autonomous joint laws for a set of robots.
 
+    The model is the thesis' E1 parameter set (Tables 3.3-3.4) with gravity
+    expressed in each robot's base frame.
+
     Args:
         robots: robot names.
         dt: control period [s].
         frequency_hz: natural frequency of the critically damped PD (5.15-5.16) [Hz].
+        gravity_base: per robot, gravity in its base frame [m/s^2]; missing robots
+            take E1's default (base z axis pointing down).
     """
 
-    def __init__(self, robots: tuple[str, ...], dt: float, frequency_hz: float = 7.0) -> None:
+    def __init__(
+        self,
+        robots: tuple[str, ...],
+        dt: float,
+        frequency_hz: float = 7.0,
+        gravity_base: Mapping[str, tuple[float, float, float]] | None = None,
+    ) -> None:
+        import dataclasses
+
         from suture_engine.control.gravity import GravityCompensation
         from suture_engine.control.model import endobot_control_model
         from suture_engine.control.pd import PDController, gains_at_workspace_centre
+        from suture_engine.robot.params import E1
 
         self.dt = dt
-        model = endobot_control_model()
-        gains = gains_at_workspace_centre(frequency_hz)
-        self._pd = {r: PDController(gains, model, friction=True) for r in robots}
-        self._gc = {r: GravityCompensation(model) for r in robots}
+        self._pd = {}
+        self._gc = {}
+        for r in robots:
+            g = (gravity_base or {}).get(r)
+            params = E1 if g is None else dataclasses.replace(E1, gravity=(g[0], g[1], g[2]))
+            model = endobot_control_model(params)
+            gains = gains_at_workspace_centre(frequency_hz, params)
+            self._pd[r] = PDController(gains, model, friction=True)
+            self._gc[r] = GravityCompensation(model)
         self._hold: dict[str, FloatArray] = {}
         self._vel_setpoint: dict[str, FloatArray] = {}
         self._zero = np.zeros(N_JOINTS)

@@ -47,7 +47,10 @@ from suture_engine.runtime.operator import OperatorEvent
 from suture_engine.runtime.recorder import Recorder
 from suture_engine.runtime.summary import RunSummary
 
-__all__ = ["Interpreter", "OperatorSource"]
+__all__ = ["GRAVITY", "Interpreter", "OperatorSource"]
+
+GRAVITY = 9.81
+"""Gravity [m/s^2], pointing along -z of the world (the value of the robot model)."""
 
 
 class OperatorSource(Protocol):
@@ -128,7 +131,11 @@ class Interpreter:
         self.robots = tuple(first.robots)
         self.geometry: SceneGeometry = backend.geometry()
         self._washout = {r: WashoutFilter(washout_pole, self.dt) for r in self.robots}
-        self.controller = ModeController(self.robots, self.dt)
+        gravity: dict[str, tuple[float, float, float]] = {}
+        for name, (_pos, rot) in self._base_poses().items():
+            g = np.asarray(rot).reshape(3, 3).T @ np.array([0.0, 0.0, -GRAVITY])
+            gravity[name] = (float(g[0]), float(g[1]), float(g[2]))
+        self.controller = ModeController(self.robots, self.dt, gravity_base=gravity)
         self.monitor = Monitor()
         self.tension = TensionEstimator()
         self.tension.tare(first)

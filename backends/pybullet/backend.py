@@ -1,0 +1,235 @@
+"""The PyBullet backend: two EndoBots (:class:`backends.pybullet.robot.EndoBotSim`).
+
+Each robot of the scene stands at its base pose (the base origin is the RCM);
+torques are applied at the control rate (1 kHz) and PyBullet steps once per
+tick. Measurements are what the real robot has: encoder positions and the base
+force/torque sensor, through the sensor models of :mod:`backends.pybullet.sensors`
+(seeded, so a seed gives the same run). Headless (``p.DIRECT``) by default;
+``gui=True`` opens a window.
+
+The surgical scene (tissue, suture, tool jaws) of :mod:`backends.pybullet.scene`
+is not attached yet: ``ground_truth`` reports the robots' true joint states and
+tool-tip positions only, and tool commands update the reported tool state
+without physical jaws.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from backends.base import BackendError
+from suture_engine.runtime.observation import (
+    Command,
+    CommandMode,
+    Measurement,
+    RobotMeasurement,
+    SceneGeometry,
+    ToolState,
+)
+
+__all__ = ["DEFAULT_BASES", "DEFAULT_Q0", "PyBulletBackend"]
+
+DEFAULT_Q0 = (0.0, 0.0, 0.0, 0.08)
+"""Start joints when the scene gives none [rad, rad, rad, m]."""
+
+DEFAULT_BASES: dict[str, tuple[tuple[float, float, float], tuple[float, float, float]]] = {
+    "endobot_1": ((-0.05, 0.0, 0.12), (math.pi, 0.0, 0.0)),
+    "endobot_2": ((0.05, 0.0, 0.12), (math.pi, 0.0, 0.0)),
+}
+"""Base position [m] and roll-pitch-yaw [rad] when no scene is given (z axes pointing down)."""
+
+
+def _quaternion(rpy: tuple[float, float, float]) -> tuple[float, float, float, float]:
+    """(x, y, z, w) of R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    r, p, y = (0.5 * float(a) for a in rpy)
+    cr, sr, cp, sp, cy, sy = (
+        math.cos(r),
+        math.sin(r),
+        math.cos(p),
+        math.sin(p),
+        math.cos(y),
+        math.sin(y),
+    )
+    return (
+        sr * cp * cy - cr * sp * sy,
+        cr * sp * cy + sr * cp * sy,
+        cr * cp * sy - sr * sp * cy,
+        cr * cp * cy + sr * sp * sy,
+    )
+
+
+class PyBulletBackend:
+    """Two EndoBots in PyBullet.
+
+    Args:
+        gui: open a window (``p.GUI``) instead of running headless.
+        dt: control and physics period [s].
+        q0: start joints per robot (default :data:`DEFAULT_Q0`).
+        friction: simulate joint friction.
+    """
+
+    name = "pybullet"
+
+    def __init__(
+        self,
+        gui: bool = False,
+        dt: float = 1e-3,
+        q0: Mapping[str, tuple[float, ...]] | None = None,
+        friction: bool = True,
+    ) -> None:
+        self.gui = gui
+        self.dt = dt
+        self.friction = friction
+        self._q0 = dict(q0 or {})
+        self.client: int | None = None
+        self.robots: dict[str, Any] = {}
+        self.tick = 0
+        self._tools: dict[str, ToolState] = {}
+        self._forces: list[tuple[str, np.ndarray, int]] = []
+        self._geometry = SceneGeometry()
+        self._p: Any = None
+
+    def _bases(self, scene: Any) -> dict[str, tuple[Any, Any, str]]:
+        robots = getattr(scene, "robots", None)
+        if not robots:
+            return {n: (pos, rpy, "grasper") for n, (pos, rpy) in DEFAULT_BASES.items()}
+        return {
+            name: (tuple(spec.base.position), tuple(spec.base.rpy), str(spec.tool))
+            for name, spec in robots.items()
+        }
+
+    def reset(self, scene: Any, seed: int) -> Measurement:
+        """Connect, build the robots at the scene's base poses, measure once.
+
+        Args:
+            scene: the scene model (robots' base poses, tissue points), or None.
+            seed: seeds the sensor models.
+        """
+        import pybullet as p
+
+        from backends.pybullet.robot import EndoBotSim
+
+        self.close()
+        self._p = p
+        self.client = p.connect(p.GUI if self.gui else p.DIRECT)
+        if self.client < 0:
+            raise BackendError(self.name, "cannot connect to PyBullet")
+        p.setTimeStep(self.dt, physicsClientId=self.client)
+        p.setGravity(0.0, 0.0, -9.81, physicsClientId=self.client)
+        self.robots = {}
+        self._tools = {}
+        self._forces = []
+        self.tick = 0
+        base_positions = {}
+        for i, (name, (pos, rpy, tool)) in enumerate(sorted(self._bases(scene).items())):
+            sim = EndoBotSim(
+                self.client,
+                base_position=pos,
+                base_orientation=_quaternion(rpy),
+                q0=self._q0.get(name, DEFAULT_Q0),
+                friction=self.friction,
+                seed=seed * 1000 + i,
+            )
+            self.robots[name] = sim
+            self._tools[name] = ToolState(kind=tool)
+            base_positions[name] = (float(pos[0]), float(pos[1]), float(pos[2]))
+        tissue = getattr(scene, "tissue", None)
+        points = getattr(tissue, "points", None) or {}
+        self._geometry = SceneGeometry(
+            entry_point=np.asarray(points.get("entry", (0.0, 0.0, 0.0)), dtype=float),
+            exit_point=np.asarray(points.get("exit", (0.0, 0.0, 0.0)), dtype=float),
+            tissue_normal=np.asarray(getattr(tissue, "normal", (0.0, 0.0, 1.0)), dtype=float),
+            base_positions=base_positions,
+        )
+        return self.observe()
+
+    def _need(self) -> Any:
+        if self.client is None:
+            raise BackendError(self.name, "not reset (or closed)")
+        return self._p
+
+    def observe(self) -> Measurement:
+        """Encoders and base F/T sensors of every robot."""
+        self._need()
+        robots = {}
+        for name, sim in self.robots.items():
+            m = sim.measure()
+            robots[name] = RobotMeasurement(
+                m.joints.values,
+                m.base_wrench.values,
+                self._tools[name],
+                fault=not (m.joints.fresh and m.base_wrench.fresh),
+            )
+        return Measurement(self.tick, self.tick * self.dt, robots)
+
+    def apply(self, command: Command) -> None:
+        """Apply TORQUE commands; tool commands update the tool state."""
+        self._need()
+        for name, rc in command.robots.items():
+            sim = self.robots.get(name)
+            if sim is None:
+                raise BackendError(self.name, f"no robot named {name!r}")
+            if rc.mode is not CommandMode.TORQUE or rc.tau is None:
+                raise BackendError(self.name, "the backend takes joint torques only")
+            sim.apply(rc.tau)
+            if rc.tool is not None:
+                t = self._tools[name]
+                self._tools[name] = ToolState(
+                    t.kind,
+                    t.jaw_closed if rc.tool.jaw_closed is None else rc.tool.jaw_closed,
+                    t.jaw2_closed if rc.tool.jaw2_closed is None else rc.tool.jaw2_closed,
+                    t.hook_extension if rc.tool.hook_extension is None else rc.tool.hook_extension,
+                )
+
+    def apply_external_force(
+        self, robot: str, force: tuple[float, float, float], duration: float
+    ) -> None:
+        """Push ``robot``'s tool tip with ``force`` [N] (world frame) for ``duration`` [s]."""
+        if robot not in self.robots:
+            raise BackendError(self.name, f"no robot named {robot!r}")
+        ticks = max(1, round(duration / self.dt))
+        self._forces.append((robot, np.array(force, dtype=np.float64), self.tick + ticks))
+
+    def step(self) -> None:
+        """Advance the world by one period (external forces re-applied each step)."""
+        p = self._need()
+        self._forces = [f for f in self._forces if self.tick < f[2]]
+        for name, force, _until in self._forces:
+            sim = self.robots[name]
+            tip, _ = sim.true_tool_pose()
+            p.applyExternalForce(
+                sim.body_id,
+                sim.tool_link,
+                force.tolist(),
+                tip.tolist(),
+                p.WORLD_FRAME,
+                physicsClientId=self.client,
+            )
+        p.stepSimulation(physicsClientId=self.client)
+        self.tick += 1
+
+    def geometry(self) -> SceneGeometry:
+        """The scene's declared geometry."""
+        return self._geometry
+
+    def ground_truth(self) -> Mapping[str, Any]:
+        """True joint states and tool-tip positions (evaluation only)."""
+        out: dict[str, Any] = {}
+        for name, sim in self.robots.items():
+            tip, _ = sim.true_tool_pose()
+            out[f"{name}/tool_tip"] = tip
+        return out
+
+    def close(self) -> None:
+        """Disconnect; idempotent."""
+        if self.client is not None and self._p is not None:
+            try:
+                self._p.disconnect(physicsClientId=self.client)
+            except Exception:  # already gone (window closed by the user)
+                pass
+        self.client = None
+        self.robots = {}
