@@ -190,6 +190,9 @@ class EndoBotSim:
             physicsClientId=client,
         )
         p.enableJointForceTorqueSensor(self.body_id, self.ft_joint, True, physicsClientId=client)
+        self._base_com = np.array(
+            p.getDynamicsInfo(self.body_id, self.ft_joint, physicsClientId=client)[3]
+        )
         rng = np.random.default_rng(seed)
         self._encoder = Sensor(encoder or SensorModel(), 4, rng)
         self._ft = Sensor(ft_sensor or SensorModel(), 6, rng)
@@ -252,9 +255,12 @@ class EndoBotSim:
 
     def true_base_wrench(self) -> FloatArray:
         """Ground-truth base wrench (Fx, Fy, Fz [N], Mx, My, Mz [N*m]) in the base frame."""
-        return np.array(
+        raw = np.array(
             self._p.getJointState(self.body_id, self.ft_joint, physicsClientId=self.client)[2]
         )
+        # PyBullet reports the moment about the child link's centre of mass; move it to the RCM.
+        raw[3:] += np.cross(self._base_com, raw[:3])
+        return raw
 
     def true_tool_pose(self) -> tuple[FloatArray, FloatArray]:
         """World position [m] and quaternion (x, y, z, w) of the tool frame (ground truth)."""
