@@ -166,6 +166,7 @@ class TraceWriter:
         )
         self._schema_ids: dict[str, int] = {}
         self._channel_ids: dict[str, tuple[int, channels.ChannelSpec]] = {}
+        self._validators: dict[str, Any] = {}
         self._closed = False
         self._last_time_ns = 0
         self._last_flush_ns = 0
@@ -305,8 +306,12 @@ class TraceWriter:
     def _check_schema(self, topic: str, spec: channels.ChannelSpec, data: bytes) -> None:
         import jsonschema
 
+        validator = self._validators.get(spec.schema_name)
+        if validator is None:
+            validator = jsonschema.Draft202012Validator(spec.schema)
+            self._validators[spec.schema_name] = validator
         try:
-            jsonschema.validate(codec.decode(data), spec.schema)
+            validator.validate(codec.decode(data))
         except jsonschema.ValidationError as exc:
             raise TraceMessageError(
                 str(self.path), topic, f"does not match {spec.schema_name}: {exc.message}"
