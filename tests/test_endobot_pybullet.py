@@ -57,7 +57,7 @@ def _rot(quat: tuple[float, ...] | np.ndarray) -> np.ndarray:
 
 @given(joints)
 def test_fk_matches_pybullet_link_state(tilted: tuple[int, EndoBotSim], q: np.ndarray) -> None:
-    cid, sim = tilted
+    _, sim = tilted
     sim.reset(q)
     pos, orn = sim.true_tool_pose()
     r_base = _rot(TILTED)
