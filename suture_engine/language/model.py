@@ -129,6 +129,9 @@ class StateDocument(_Model):
     """A sub-procedure file, relative to this file."""
     with_: dict[str, Any] = Field(default_factory=dict, alias="with")
     """Parameters of the skill or sub-procedure (quantities with units, ``${...}``)."""
+    when: bool = True
+    """When false (usually an expression, ``${stitch}``), the state is skipped: it
+    raises ``done`` at once without running its skill."""
     invariant: Invariant | None = None
     """The state's invariant."""
     timeout: Duration | None = Field(default=None, gt=0.0)

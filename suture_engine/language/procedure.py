@@ -55,6 +55,8 @@ class LoadedState:
         on: event -> target state name or failure policy.
         outcome: ``succeeded``/``failed``/``aborted`` for a terminal state.
         description: free text.
+        enabled: False when the state's ``when`` is false: the runtime skips it and
+            takes its ``done`` transition at once.
     """
 
     name: str
@@ -67,6 +69,7 @@ class LoadedState:
     on: Mapping[str, str | FailurePolicy] = field(default_factory=dict)
     outcome: str | None = None
     description: str = ""
+    enabled: bool = True
 
     @property
     def terminal(self) -> bool:
@@ -88,6 +91,8 @@ class Procedure:
         roles: role -> robot name.
         initial: the first state's name.
         states: the states by name, in file order.
+        source: positions of the file's nodes
+            (:class:`suture_engine.language.source.SourceMap`), for located messages.
     """
 
     name: str
@@ -99,3 +104,4 @@ class Procedure:
     roles: Mapping[str, str]
     initial: str
     states: Mapping[str, LoadedState]
+    source: Any = None
