@@ -47,6 +47,12 @@ FloatArray = NDArray[np.float64]
 Vec = Sequence[float] | FloatArray
 Gravity = tuple[float, float, float]
 
+
+def _floats(v: Sequence[float] | FloatArray) -> list[float]:
+    """Joint values as Python floats (math on them is ~3x faster than on numpy scalars)."""
+    return v.tolist() if isinstance(v, np.ndarray) else [float(x) for x in v]
+
+
 N_THETA = 8
 """Number of base dynamic parameters θ."""
 
@@ -62,7 +68,7 @@ def mass_matrix(q: Vec, th: DynamicCoefficients, out: FloatArray | None = None) 
     Returns:
         The symmetric positive definite 4x4 M(q) [kg*m^2, kg*m, kg].
     """
-    q2, q4 = q[1], q[3]
+    _, q2, _, q4 = _floats(q)
     c2, s2 = math.cos(q2), math.sin(q2)
     a = (2.0 * th.h4 + th.m4 * q4) * q4
     m = np.zeros((4, 4)) if out is None else out
@@ -78,7 +84,7 @@ def mass_matrix(q: Vec, th: DynamicCoefficients, out: FloatArray | None = None) 
 
 def _partials(q: Vec, th: DynamicCoefficients) -> tuple[float, float, float, float]:
     """Non-zero partials of M: ∂M11/∂q2, ∂M11/∂q4, ∂M13/∂q2, ∂M22/∂q4."""
-    q2, q4 = q[1], q[3]
+    _, q2, _, q4 = _floats(q)
     c2, s2 = math.cos(q2), math.sin(q2)
     a = (2.0 * th.h4 + th.m4 * q4) * q4
     da = 2.0 * (th.h4 + th.m4 * q4)
@@ -100,7 +106,7 @@ def coriolis_matrix(q: Vec, qd: Vec, th: DynamicCoefficients) -> FloatArray:
         The 4x4 C(q, q̇).
     """
     p12, p14, p32, p24 = _partials(q, th)
-    v1, v2, v3, v4 = qd
+    v1, v2, v3, v4 = _floats(qd)
     c = np.zeros((4, 4))
     c[0, 0] = 0.5 * (p12 * v2 + p14 * v4)
     c[0, 1] = 0.5 * (p12 * v1 + p32 * v3)
@@ -129,7 +135,7 @@ def coriolis_vector(q: Vec, qd: Vec, th: DynamicCoefficients) -> FloatArray:
         The Coriolis and centrifugal torques [N*m, N*m, N*m, N], shape (4,).
     """
     p12, p14, p32, p24 = _partials(q, th)
-    v1, v2, v3, v4 = qd
+    v1, v2, v3, v4 = _floats(qd)
     return np.array(
         (
             p12 * v1 * v2 + p14 * v1 * v4 + p32 * v2 * v3,
@@ -142,7 +148,7 @@ def coriolis_vector(q: Vec, qd: Vec, th: DynamicCoefficients) -> FloatArray:
 
 def _gravity_terms(q: Vec, g: Gravity) -> tuple[float, float, float]:
     """w1 = -gᵀ ∂(R e_z)/∂q1 / c2 ... helpers: (c1 gy + s1 gz, gᵀ ∂u/∂q2, gᵀ u)."""
-    q1, q2 = q[0], q[1]
+    q1, q2, _, _ = _floats(q)
     c1, s1 = math.cos(q1), math.sin(q1)
     c2, s2 = math.cos(q2), math.sin(q2)
     gx, gy, gz = g
@@ -169,10 +175,11 @@ def gravity_vector(
     Returns:
         G(q) [N*m, N*m, N*m, N], shape (4,).
     """
-    w1, w2, w4 = _gravity_terms(q, g)
-    k = th.ml2 + th.m4 * q[3]
+    qf = _floats(q)
+    w1, w2, w4 = _gravity_terms(qf, g)
+    k = th.ml2 + th.m4 * qf[3]
     res = np.empty(4) if out is None else out
-    res[0] = (th.ml1 - th.ml2 + k * math.cos(q[1])) * w1
+    res[0] = (th.ml1 - th.ml2 + k * math.cos(qf[1])) * w1
     res[1] = -k * w2
     res[2] = 0.0
     res[3] = -th.m4 * w4
@@ -211,10 +218,10 @@ def regressor(q: Vec, qd: Vec, qdd: Vec, g: Gravity) -> FloatArray:
     Returns:
         The 4x8 regressor.
     """
-    q2, q4 = q[1], q[3]
+    _, q2, _, q4 = _floats(q)
     c2, s2 = math.cos(q2), math.sin(q2)
-    v1, v2, v3, v4 = qd
-    a1, a2, a3, a4 = qdd
+    v1, v2, v3, v4 = _floats(qd)
+    a1, a2, a3, a4 = _floats(qdd)
     w1, w2, w4 = _gravity_terms(q, g)
     sc = s2 * c2
     cc = c2 * c2

@@ -42,6 +42,11 @@ SINGULARITY_MARGIN = 1e-4
 FloatArray = NDArray[np.float64]
 
 
+def _floats(v: Sequence[float] | FloatArray) -> list[float]:
+    """Joint values as Python floats (math on them is ~3x faster than on numpy scalars)."""
+    return v.tolist() if isinstance(v, np.ndarray) else [float(x) for x in v]
+
+
 class UnreachablePose(SutureError):
     """A tool pose that inverse kinematics cannot map to joints.
 
@@ -80,7 +85,7 @@ def forward_kinematics(q: Sequence[float] | FloatArray) -> ToolPose:
     Returns:
         The tool pose.
     """
-    q1, q2, q3, q4 = q
+    q1, q2, q3, q4 = _floats(q)
     c2q4 = math.cos(q2) * q4
     return ToolPose(
         np.array((math.sin(q2) * q4, -math.sin(q1) * c2q4, math.cos(q1) * c2q4)), float(q3)
@@ -157,7 +162,7 @@ def analytical_jacobian(
     Returns:
         The 4x4 Jacobian (rows x [m], y [m], z [m], roll [rad]).
     """
-    q1, q2, _, q4 = q
+    q1, q2, _, q4 = _floats(q)
     c1, s1 = math.cos(q1), math.sin(q1)
     c2, s2 = math.cos(q2), math.sin(q2)
     j = np.zeros((4, 4)) if out is None else out
