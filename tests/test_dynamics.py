@@ -14,7 +14,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from backends.pybullet.urdf import endobot_urdf
-from suture_engine.robot import endobot
+from suture_engine.robot import dynamics, endobot
 from suture_engine.robot.params import E1, E2, EndoBotParams
 
 angle = st.floats(-1.0, 1.0)
@@ -85,6 +85,12 @@ def test_mass_matrix_symmetric_positive_definite(params: EndoBotParams, q: np.nd
     m = endobot.mass_matrix(q, params)
     np.testing.assert_array_equal(m, m.T)
     assert np.linalg.eigvalsh(m).min() > 0.0
+
+
+@given(robots, joints)
+def test_closed_form_inverse_matches_numpy(params: EndoBotParams, q: np.ndarray) -> None:
+    inv = dynamics.mass_matrix_inverse(q, params.coefficients)
+    np.testing.assert_allclose(inv, np.linalg.inv(endobot.mass_matrix(q, params)), rtol=1e-10)
 
 
 @given(robots, joints, velocities, st.tuples(*[st.floats(-1.0, 1.0)] * 4).map(np.array))

@@ -281,38 +281,38 @@ class EndoBotSim:
             τ_f, opposing motion (subtracted from the applied torque).
         """
         th = self._theta
-        m = dynamics.mass_matrix(q, th)
         rest = (
             np.asarray(tau, dtype=float)
             - dynamics.coriolis_vector(q, qd, th)
             - dynamics.gravity_vector(q, th, self.model_params.gravity)
-        )
-        w = self.dt * np.linalg.inv(m)
-        v_free = np.asarray(qd, dtype=float) + w @ rest
-        wl = w.tolist()
-        vf = v_free.tolist()
+        ).tolist()
+        dt = self.dt
+        wl = [[dt * x for x in row] for row in dynamics.mass_matrix_inverse(q, th)]
         qdl = [float(v) for v in qd]
+        vf = [qdl[i] + sum(wl[i][j] * rest[j] for j in range(4)) for i in range(4)]
         static = self.friction_model in (FrictionModel.STATIC, FrictionModel.STRIBECK)
         stribeck = self.friction_model is FrictionModel.STRIBECK
+        slide: list[float] = []  # sliding friction level per joint (Coulomb + Stribeck)
+        brk: list[float] = []  # largest torque static friction can hold
+        for i in range(4):
+            at_rest = abs(qdl[i]) <= _REST_VELOCITY
+            fc = self._fc[i]
+            if stribeck and not at_rest:
+                fc += (self._fs[i] - fc) * math.exp(-(abs(qdl[i] / self._vs[i]) ** self._ds[i]))
+            slide.append(fc)
+            brk.append(self._fs[i] if (static and at_rest) else fc)
         tf = [0.0, 0.0, 0.0, 0.0]
         for _ in range(_PGS_ITERATIONS):
             for i in range(4):
                 wi = wl[i]
                 v_other = vf[i] - sum(wi[j] * tf[j] for j in range(4) if j != i)
                 wii = wi[i]
-                at_rest = abs(qdl[i]) <= _REST_VELOCITY
-                fc = self._fc[i]
-                if stribeck and not at_rest:
-                    fc += (self._fs[i] - self._fc[i]) * math.exp(
-                        -(abs(qdl[i] / self._vs[i]) ** self._ds[i])
-                    )
-                brk = self._fs[i] if (static and at_rest) else fc
-                if abs(v_other) <= wii * brk:
-                    tf[i] = v_other / wii
+                if abs(v_other) <= wii * brk[i]:
+                    tf[i] = v_other / wii  # held: exactly the torque that stops the joint
                 else:
                     s = 1.0 if v_other > 0.0 else -1.0
-                    v = (v_other - wii * fc * s) / (1.0 + wii * self._fv[i])
-                    tf[i] = fc * s + self._fv[i] * v
+                    v = (v_other - wii * slide[i] * s) / (1.0 + wii * self._fv[i])
+                    tf[i] = slide[i] * s + self._fv[i] * v
         return np.array(tf)
 
     def apply(self, tau: Vec) -> None:

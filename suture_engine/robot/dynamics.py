@@ -40,6 +40,7 @@ __all__ = [
     "gravity_vector",
     "inverse_dynamics",
     "mass_matrix",
+    "mass_matrix_inverse",
     "regressor",
 ]
 
@@ -80,6 +81,31 @@ def mass_matrix(q: Vec, th: DynamicCoefficients, out: FloatArray | None = None) 
     m[2, 2] = th.i3
     m[3, 3] = th.m4
     return m
+
+
+def mass_matrix_inverse(q: Vec, th: DynamicCoefficients) -> list[list[float]]:
+    """M(q)⁻¹ in closed form, using the structure of (3.38): only joints 1 and 3 couple.
+
+    Args:
+        q: joints [rad, rad, rad, m].
+        th: base dynamic parameters θ.
+
+    Returns:
+        4x4 inverse as nested Python lists (cheap to index in a 1 kHz loop).
+    """
+    _, q2, _, q4 = _floats(q)
+    c2, s2 = math.cos(q2), math.sin(q2)
+    a = (2.0 * th.h4 + th.m4 * q4) * q4
+    m11 = th.i1 - th.delta * s2 * s2 + a * c2 * c2
+    m13 = th.i3 * s2
+    det = m11 * th.i3 - m13 * m13
+    i13 = -m13 / det
+    return [
+        [th.i3 / det, 0.0, i13, 0.0],
+        [0.0, 1.0 / (th.i2 + a), 0.0, 0.0],
+        [i13, 0.0, m11 / det, 0.0],
+        [0.0, 0.0, 0.0, 1.0 / th.m4],
+    ]
 
 
 def _partials(q: Vec, th: DynamicCoefficients) -> tuple[float, float, float, float]:
