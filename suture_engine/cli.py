@@ -9,6 +9,9 @@ input.
 
 from __future__ import annotations
 
+from pathlib import Path
+from typing import Annotated
+
 import typer
 
 __all__ = ["app", "main"]
@@ -20,6 +23,69 @@ app = typer.Typer(
     add_completion=False,
     pretty_exceptions_enable=False,
 )
+
+
+@app.command()
+def run(
+    file: Annotated[Path, typer.Argument(help="The procedure file (YAML).")],
+    backend: Annotated[str, typer.Option(help="pybullet (default) or replay.")] = "pybullet",
+    seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
+    set_: Annotated[
+        list[str] | None,
+        typer.Option("--set", help="Override a procedure parameter: name=value (repeatable)."),
+    ] = None,
+    out: Annotated[
+        Path | None, typer.Option(help="Output folder (default: a new folder under runs/).")
+    ] = None,
+    operator: Annotated[Path | None, typer.Option(help="Scripted operator file.")] = None,
+    interactive: Annotated[
+        bool, typer.Option(help="Operator keys: l lock, m manual, r resume, a abort.")
+    ] = False,
+    gui: Annotated[bool, typer.Option(help="Open the simulator window.")] = False,
+    max_time: Annotated[float, typer.Option(help="Simulated time limit [s].")] = 300.0,
+    trace: Annotated[
+        Path | None, typer.Option(help="With --backend replay: the recorded trace to serve.")
+    ] = None,
+) -> None:
+    """Run a procedure; write DIR/trace.mcap and DIR/summary.json."""
+    from suture_engine.runtime.cli_run import run_command
+
+    raise typer.Exit(
+        run_command(
+            file,
+            backend=backend,
+            seed=seed,
+            sets=set_ or [],
+            out=out,
+            operator=operator,
+            interactive=interactive,
+            gui=gui,
+            max_time=max_time,
+            replay_trace=trace,
+        )
+    )
+
+
+@app.command()
+def replay(
+    trace: Annotated[Path, typer.Argument(help="A recorded trace (trace.mcap).")],
+    check: Annotated[
+        bool, typer.Option(help="Compare the engine's commands and events with the recorded ones.")
+    ] = False,
+    procedure: Annotated[
+        Path | None, typer.Option(help="The procedure file (default: the one the trace names).")
+    ] = None,
+    set_: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--set", help="Override a parameter: name=value (default: the recorded ones)."
+        ),
+    ] = None,
+) -> None:
+    """Re-run the engine against a recorded trace's measurements."""
+    from suture_engine.runtime.cli_run import replay_command
+
+    raise typer.Exit(replay_command(trace, check=check, procedure=procedure, sets=set_ or None))
 
 
 def main() -> None:

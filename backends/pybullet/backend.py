@@ -137,6 +137,15 @@ class PyBulletBackend:
             self.robots[name] = sim
             self._tools[name] = ToolState(kind=tool)
             base_positions[name] = (float(pos[0]), float(pos[1]), float(pos[2]))
+        # One step held by gravity torques so the base sensors read the weight (PyBullet
+        # computes joint reaction forces in the step), then put the joints back.
+        from suture_engine.robot.endobot import gravity_vector
+
+        for name, sim in self.robots.items():
+            sim.apply(gravity_vector(self._q0.get(name, DEFAULT_Q0), sim.model_params))
+        p.stepSimulation(physicsClientId=self.client)
+        for name, sim in self.robots.items():
+            sim.reset(self._q0.get(name, DEFAULT_Q0))
         tissue = getattr(scene, "tissue", None)
         points = getattr(tissue, "points", None) or {}
         self._geometry = SceneGeometry(

@@ -283,6 +283,9 @@ class Interpreter:
 
     def tick(self) -> bool:
         """Run one control tick; return False once the run is over."""
+        if self._pending_meas is None and getattr(self.backend, "exhausted", False):
+            self.stop_reason = "end of recording"
+            return False
         meas, obs = self._observe()
         self._obs = obs
         time_ns = self.tick_index * self.period_ns

@@ -1,0 +1,193 @@
+"""The replay backend: serves a recorded trace's measurements tick by tick.
+
+No physics: at tick k, :meth:`ReplayBackend.observe` returns the encoder
+positions (``/joint_state/<robot>``) and base wrenches (``/base_wrench/<robot>``)
+recorded at tick k, so the engine recomputes its commands and events from the
+very measurements of the recorded run. :func:`recorded_operator_events` gives the
+recorded operator events so they can be fed back at the same ticks. A truncated
+trace (a killed run) is served up to its last complete tick.
+
+The comparison of the engine's new commands and events with the recorded ones
+is :func:`suture_engine.runtime.replay.replay_trace`.
+"""
+
+from __future__ import annotations
+
+import re
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from backends.base import BackendError
+from suture_engine.runtime.observation import (
+    Command,
+    Measurement,
+    RobotMeasurement,
+    SceneGeometry,
+    ToolState,
+)
+from suture_engine.runtime.operator import OperatorEvent
+
+__all__ = ["EndOfRecording", "ReplayBackend", "recorded_operator_events"]
+
+_DURATION = re.compile(r"duration=([-+0-9.eE]+)")
+
+
+class EndOfRecording(BackendError):
+    """The recording has no measurement for the tick asked for.
+
+    Attributes:
+        tick: the tick asked for.
+    """
+
+    code = "end-of-recording"
+
+    def __init__(self, tick: int) -> None:
+        super().__init__("replay", f"the recording ends before tick {tick}")
+        self.tick = tick
+
+
+class ReplayBackend:
+    """Serves the measurements of a recorded trace.
+
+    Args:
+        trace: the trace file (or a path-like).
+        reader: an already open :class:`suture_engine.trace.reader.TraceReader`.
+    """
+
+    name = "replay"
+
+    def __init__(self, trace: str | Path | None = None, reader: Any = None) -> None:
+        from suture_engine.trace.reader import TraceReader
+
+        if reader is None:
+            if trace is None:
+                raise BackendError(self.name, "needs a trace to replay")
+            reader = TraceReader(trace)
+        self.reader = reader
+        self.meta: dict[str, Any] = dict(reader.meta)
+        self.rate = float(self.meta.get("control_rate_hz", 1000.0))
+        self.period_ns = round(1e9 / self.rate)
+        self.robots: tuple[str, ...] = tuple(self.meta.get("robots") or ())
+        self._q: dict[str, dict[int, list[float]]] = {r: {} for r in self.robots}
+        self._w: dict[str, dict[int, list[float]]] = {r: {} for r in self.robots}
+        self.commands: dict[str, dict[int, list[float]]] = {r: {} for r in self.robots}
+        for msg in reader.messages():
+            topic = msg.topic
+            tick = round(msg.log_time_ns / self.period_ns)
+            if topic.startswith("/joint_state/"):
+                self._q.setdefault(topic[13:], {})[tick] = msg.data["position"]
+            elif topic.startswith("/base_wrench/"):
+                data = msg.data
+                self._w.setdefault(topic[13:], {})[tick] = list(data["force"]) + list(
+                    data["torque"]
+                )
+            elif topic.startswith("/command/"):
+                self.commands.setdefault(topic[9:], {})[tick] = msg.data["values"]
+        if not self.robots:
+            self.robots = tuple(sorted(self._q))
+        self.last_tick = self._last_complete_tick()
+        self.tick = 0
+        self.applied: list[Command] = []
+
+    def _last_complete_tick(self) -> int:
+        """The last tick with positions and wrenches of every robot, consecutive from 0."""
+        k = -1
+        while all(k + 1 in self._q.get(r, {}) and k + 1 in self._w.get(r, {}) for r in self.robots):
+            k += 1
+        return k
+
+    @property
+    def exhausted(self) -> bool:
+        """True when the next tick to observe is not in the recording."""
+        return self.tick > self.last_tick
+
+    def reset(self, scene: Any = None, seed: int = 0) -> Measurement:
+        """Rewind to tick 0; ``scene`` and ``seed`` are those of the recorded run.
+
+        Raises:
+            EndOfRecording: the recording holds no complete tick.
+        """
+        del scene, seed
+        self.tick = 0
+        self.applied = []
+        return self.observe()
+
+    def observe(self) -> Measurement:
+        """The recorded measurement of the current tick.
+
+        Raises:
+            EndOfRecording: past the last complete tick.
+        """
+        if self.tick > self.last_tick:
+            raise EndOfRecording(self.tick)
+        robots = {
+            r: RobotMeasurement(
+                np.array(self._q[r][self.tick], dtype=np.float64),
+                np.array(self._w[r][self.tick], dtype=np.float64),
+                ToolState(),
+            )
+            for r in self.robots
+        }
+        return Measurement(self.tick, self.tick * self.period_ns * 1e-9, robots)
+
+    def apply(self, command: Command) -> None:
+        """Keep the command (the comparison reads the trace the engine writes)."""
+        self.applied.append(command)
+
+    def apply_external_force(
+        self, robot: str, force: tuple[float, float, float], duration: float
+    ) -> None:
+        """Nothing to do: the recorded measurements already felt the force."""
+        del robot, force, duration
+
+    def step(self) -> None:
+        """Move to the next recorded tick."""
+        self.tick += 1
+
+    def geometry(self) -> SceneGeometry:
+        """A default geometry (skills take the declared geometry from the scene model)."""
+        return SceneGeometry()
+
+    def ground_truth(self) -> Mapping[str, Any]:
+        """None: a recording replays no physics."""
+        return {}
+
+    def close(self) -> None:
+        """Nothing to release."""
+
+
+class _ReplayOperator:
+    def __init__(self, events: dict[int, list[OperatorEvent]], rate: float) -> None:
+        self._events = events
+        self._rate = rate
+
+    @property
+    def exhausted(self) -> bool:
+        return False
+
+    def poll(self, t: float, state: str, step: str | None, mode: str) -> list[OperatorEvent]:
+        return self._events.pop(round(t * self._rate), [])
+
+
+def recorded_operator_events(reader: Any, rate: float) -> _ReplayOperator:
+    """An operator source that re-issues the trace's ``/operator`` events at their ticks."""
+    period_ns = round(1e9 / rate)
+    events: dict[int, list[OperatorEvent]] = {}
+    for msg in reader.messages(["/operator"]):
+        d = msg.data
+        detail = d.get("detail") or ""
+        m = _DURATION.search(detail)
+        force = d.get("force")
+        ev = OperatorEvent(
+            action=d["action"],
+            step=d.get("target_state"),
+            robot=d.get("robot"),
+            force=tuple(force) if force is not None else None,
+            duration=float(m.group(1)) if m else 0.0,
+            source=d.get("source") or "replay",
+        )
+        events.setdefault(round(msg.log_time_ns / period_ns), []).append(ev)
+    return _ReplayOperator(events, rate)

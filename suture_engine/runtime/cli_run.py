@@ -1,0 +1,165 @@
+"""The work behind ``suture run`` and ``suture replay`` (the CLI wrappers stay thin).
+
+Both return the process exit code: 0 success, 1 invalid input or a run that
+did not succeed (or a replay check that diverged), 2 usage or I/O errors.
+Typed errors are printed as one located message, never as a traceback.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Sequence
+from pathlib import Path
+
+__all__ = ["replay_command", "run_command"]
+
+
+def _error(message: str) -> None:
+    from rich.console import Console
+
+    Console(stderr=True, highlight=False).print(f"[bold red]error:[/] {message}", markup=True)
+
+
+def _print_summary(summary: object, out_dir: Path | None) -> None:
+    from rich.console import Console
+    from rich.table import Table
+
+    s = summary
+    table = Table(show_header=False, box=None, pad_edge=False)
+    colour = {"succeeded": "green", "failed": "red", "aborted": "yellow"}.get(
+        getattr(s, "outcome", ""), "white"
+    )
+    rows = [
+        ("procedure", str(getattr(s, "procedure", ""))),
+        ("outcome", f"[{colour}]{getattr(s, 'outcome', '')}[/]"),
+        ("final state", str(getattr(s, "final_state", ""))),
+        ("sim time", f"{getattr(s, 'sim_time_s', 0.0):.3f} s"),
+        ("wall time", f"{getattr(s, 'wall_time_s', 0.0):.3f} s"),
+        ("real-time factor", f"{getattr(s, 'real_time_factor', 0.0):.2f}"),
+        ("max tension", f"{getattr(s, 'max_tension_N', 0.0):.3f} N"),
+        ("violations", str(len(getattr(s, "violations", [])))),
+        ("retries", str(getattr(s, "retries", 0))),
+        ("operator events", str(getattr(s, "operator_events", 0))),
+    ]
+    stopped = getattr(s, "metrics", {}).get("stopped")
+    if stopped:
+        rows.append(("stopped", str(stopped)))
+    if out_dir is not None:
+        rows.append(("output", str(out_dir)))
+    for key, value in rows:
+        table.add_row(f"[bold]{key}[/]", value)
+    Console(highlight=False).print(table)
+
+
+def run_command(
+    file: Path,
+    *,
+    backend: str,
+    seed: int,
+    sets: Sequence[str],
+    out: Path | None,
+    operator: Path | None,
+    interactive: bool,
+    gui: bool,
+    max_time: float,
+    replay_trace: Path | None = None,
+) -> int:
+    """``suture run``: returns the exit code."""
+    from suture_engine.errors import SutureError
+    from suture_engine.runtime.run import ProcedureLoadError, run_procedure
+
+    options = {}
+    if backend == "replay":
+        if replay_trace is None:
+            _error("--backend replay needs --trace TRACE (the recording to serve)")
+            return 2
+        options["trace"] = replay_trace
+    progress_cb = None
+    progress_ctx = None
+    if sys.stdout.isatty():
+        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+        progress_ctx = Progress(
+            TextColumn("[bold]running[/]"),
+            BarColumn(),
+            TextColumn("{task.fields[t]:.2f} s simulated"),
+            TimeElapsedColumn(),
+            transient=True,
+        )
+        task = progress_ctx.add_task("run", total=max_time, t=0.0)
+
+        def progress_cb(t: float, limit: float) -> None:
+            if int(t * 1000) % 500 == 0:
+                progress_ctx.update(task, completed=t, t=t)
+
+        progress_ctx.start()
+    try:
+        result = run_procedure(
+            file,
+            backend=backend,
+            seed=seed,
+            sets=sets,
+            out=out,
+            operator_file=operator,
+            interactive=interactive,
+            gui=gui,
+            max_time_s=max_time,
+            progress=progress_cb,
+            backend_options=options,
+        )
+    except ProcedureLoadError as exc:
+        for problem in exc.problems:
+            _error(problem)
+        return 1
+    except SutureError as exc:
+        _error(f"{exc.code}: {exc.message}")
+        return 2 if exc.code in ("trace-io", "trace-error") else 1
+    except OSError as exc:
+        _error(f"{exc.filename or ''}: {exc.strerror}")
+        return 2
+    finally:
+        if progress_ctx is not None:
+            progress_ctx.stop()
+    _print_summary(result.summary, result.out_dir)
+    return 0 if result.summary.outcome == "succeeded" else 1
+
+
+def replay_command(
+    trace: Path,
+    *,
+    check: bool,
+    procedure: Path | None,
+    sets: Sequence[str] | None,
+) -> int:
+    """``suture replay``: returns the exit code."""
+    from rich.console import Console
+
+    from suture_engine.errors import SutureError
+    from suture_engine.runtime.run import ProcedureLoadError, replay_trace
+
+    if not trace.is_file():
+        _error(f"{trace}: no such file")
+        return 2
+    try:
+        result = replay_trace(trace, check=check, procedure=procedure, sets=sets)
+    except ProcedureLoadError as exc:
+        for problem in exc.problems:
+            _error(problem)
+        return 1
+    except SutureError as exc:
+        _error(f"{exc.code}: {exc.message}")
+        return 1
+    console = Console(highlight=False)
+    note = " (the recording ends early: replayed up to its last complete tick)"
+    console.print(
+        f"replayed {result.ticks} ticks of {trace}{note if result.truncated else ''}; "
+        f"outcome {result.summary.outcome}, final state {result.summary.final_state}"
+    )
+    if check:
+        if result.ok:
+            console.print("[green]check passed[/]: " + result.diff)
+        else:
+            console.print("[red]check failed[/]")
+            console.print(result.diff, markup=False)
+            return 1
+    return 0

@@ -1,0 +1,385 @@
+"""``suture run`` and ``suture replay``: load, compile, run, write the trace and summary.
+
+:func:`run_procedure` loads a procedure (with ``--set`` overrides of its
+parameters), compiles it, resets the backend with the scene and the seed, runs
+the interpreter and writes ``trace.mcap`` and ``summary.json`` into the output
+folder. :func:`replay_trace` re-runs the engine against a recorded trace's
+measurements (the replay backend) and, with ``check``, compares the new
+commands and events with the recorded ones within explicit tolerances.
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from suture_engine.errors import SutureError
+from suture_engine.runtime.summary import RunSummary, write_summary
+
+__all__ = [
+    "COMPARED_TOPICS",
+    "ProcedureLoadError",
+    "ReplayResult",
+    "RunResult",
+    "SetOverrideError",
+    "load_plan",
+    "replay_trace",
+    "run_procedure",
+]
+
+COMPARED_TOPICS = (
+    "/command/*",
+    "/events",
+    "/transitions",
+    "/operator",
+    "/joint_state/*",
+    "/tension/estimated",
+)
+"""What ``replay --check`` compares: the engine's outputs and its velocity estimates."""
+
+
+class ProcedureLoadError(SutureError):
+    """The procedure does not load or compile; ``problems`` carry the located messages.
+
+    Attributes:
+        problems: located problems (``file:line:col: code: message`` strings).
+    """
+
+    code = "invalid-procedure"
+
+    def __init__(self, problems: Sequence[str]) -> None:
+        super().__init__("\n".join(problems))
+        self.problems = list(problems)
+
+
+class SetOverrideError(SutureError):
+    """A ``--set name=value`` that cannot apply.
+
+    Attributes:
+        text: the option as given.
+        available: the procedure's parameter names.
+    """
+
+    code = "bad-set"
+
+    def __init__(self, text: str, message: str, available: Sequence[str] = ()) -> None:
+        hint = f" (parameters: {', '.join(available)})" if available else ""
+        super().__init__(f"--set {text}: {message}{hint}")
+        self.text = text
+        self.available = list(available)
+
+
+@dataclass(frozen=True)
+class RunResult:
+    """A finished run.
+
+    Attributes:
+        summary: the run's summary.
+        out_dir: the output folder.
+        trace: the trace file.
+        summary_path: the summary file.
+    """
+
+    summary: RunSummary
+    out_dir: Path
+    trace: Path
+    summary_path: Path
+
+
+@dataclass(frozen=True)
+class ReplayResult:
+    """A replay.
+
+    Attributes:
+        summary: the replayed run's summary.
+        trace: the trace the replay wrote.
+        ok: True when the check passed (or no check was asked).
+        diff: the readable comparison text ("" without a check).
+        ticks: ticks replayed.
+        truncated: the recording ended early (a killed run).
+    """
+
+    summary: RunSummary
+    trace: Path
+    ok: bool
+    diff: str
+    ticks: int
+    truncated: bool
+
+
+def _with_overrides(path: Path, sets: Sequence[str]) -> Any:
+    import yaml
+
+    from suture_engine.language.loader import load, load_text
+
+    if not sets:
+        return load(path)
+    try:
+        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError) as exc:
+        raise ProcedureLoadError([f"{path}: cannot read: {exc}"]) from None
+    params = data.get("params") if isinstance(data, dict) else None
+    names = sorted(params) if isinstance(params, dict) else []
+    for text in sets:
+        name, sep, value = text.partition("=")
+        name = name.strip()
+        if not sep or not name:
+            raise SetOverrideError(text, "expected name=value")
+        if not isinstance(params, dict) or name not in params:
+            raise SetOverrideError(text, f"no parameter named {name!r}", names)
+        parsed = yaml.safe_load(value) if value.strip() else value
+        spec = params[name]
+        if isinstance(spec, dict):
+            spec["default"] = parsed
+        else:
+            params[name] = parsed
+    text = yaml.safe_dump(data, sort_keys=False)
+    return load_text(text, str(path), base=path.resolve().parent)
+
+
+def load_plan(path: str | Path, sets: Sequence[str] = ()) -> tuple[Any, Any]:
+    """Load and compile a procedure.
+
+    Returns:
+        (the loaded procedure, its :class:`~suture_engine.runtime.automaton.Plan`).
+
+    Raises:
+        ProcedureLoadError: loading problems (located) or a compile error.
+        SetOverrideError: a bad ``--set``.
+    """
+    from suture_engine.runtime.automaton import AutomatonError
+    from suture_engine.runtime.plan import compile_procedure
+
+    file = Path(path)
+    if not file.is_file():
+        raise ProcedureLoadError([f"{path}: no such file"])
+    result = _with_overrides(file, sets)
+    if result.problems or result.procedure is None:
+        raise ProcedureLoadError([str(p) for p in result.problems] or [f"{path}: not a procedure"])
+    try:
+        plan = compile_procedure(result.procedure)
+    except AutomatonError as exc:
+        raise ProcedureLoadError([f"{path}: {exc.message}"]) from None
+    return result.procedure, plan
+
+
+def _new_run_dir(root: Path, name: str, seed: int) -> Path:
+    root.mkdir(parents=True, exist_ok=True)
+    for n in range(1, 100000):
+        candidate = root / f"{name}-seed{seed}-{n:03d}"
+        try:
+            candidate.mkdir()
+            return candidate
+        except FileExistsError:
+            continue
+    raise SutureError(f"no free run folder under {root}")
+
+
+def run_procedure(
+    path: str | Path,
+    *,
+    backend: str = "pybullet",
+    seed: int = 0,
+    sets: Sequence[str] = (),
+    out: str | Path | None = None,
+    operator_file: str | Path | None = None,
+    interactive: bool = False,
+    gui: bool = False,
+    max_time_s: float = 300.0,
+    progress: Callable[[float, float], None] | None = None,
+    backend_options: dict[str, Any] | None = None,
+) -> RunResult:
+    """Run a procedure file; write ``trace.mcap`` and ``summary.json``.
+
+    Args:
+        path: the procedure file.
+        backend: backend name ("pybullet", "replay" needs ``backend_options['trace']``).
+        seed: random seed.
+        sets: ``name=value`` overrides of the procedure's parameters.
+        out: output folder (None: a new folder under ``runs/``).
+        operator_file: a scripted operator file.
+        interactive: take operator keys from the terminal.
+        gui: open the simulator's window.
+        max_time_s: simulated time after which the run stops as failed [s].
+        progress: called with (t [s], max_time_s [s]) during the run.
+        backend_options: extra keyword options for the backend's constructor.
+
+    Raises:
+        ProcedureLoadError, SetOverrideError, OperatorFileError, UnknownBackend.
+    """
+    from backends import registry
+    from suture_engine.runtime.interpreter import Interpreter
+    from suture_engine.runtime.monitor import Invariant
+    from suture_engine.runtime.operator import InteractiveOperator, ScriptedOperator
+    from suture_engine.runtime.recorder import TraceRecorder
+
+    proc, plan = load_plan(path, sets)
+    operator: Any = None
+    if operator_file is not None:
+        operator = ScriptedOperator(operator_file)
+        operator.check_steps(list(plan.steps))
+    options = dict(backend_options or {})
+    if gui:
+        options["gui"] = True
+    be = registry.create(backend, **options)
+    out_dir = Path(out) if out is not None else _new_run_dir(Path("runs"), proc.name, seed)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    trace = out_dir / "trace.mcap"
+    scene = proc.scene
+    rate = 1.0 / float(scene.physics.timestep) if scene is not None else 1000.0
+    limit = float(scene.tension_limit) if scene is not None else None
+    if interactive:
+        operator = InteractiveOperator()
+    manual_inv = None
+    if scene is not None and scene.robots:
+        lim = next(iter(scene.robots.values())).joint_limits
+        manual_inv = Invariant(
+            q_min=(lim.yaw[0], lim.pitch[0], lim.roll[0], lim.insertion[0]),
+            q_max=(lim.yaw[1], lim.pitch[1], lim.roll[1], lim.insertion[1]),
+        )
+    try:
+        first = be.reset(scene, seed)
+        recorder = TraceRecorder(
+            trace,
+            procedure=proc.name,
+            seed=seed,
+            control_rate_hz=rate,
+            robots=tuple(first.robots),
+            backend=backend,
+            params={k: _jsonable(v) for k, v in proc.params.items()},
+            extra={"procedure_file": str(path), "sets": list(sets)},
+        )
+        interp = Interpreter(
+            plan,
+            be,
+            first,
+            roles=proc.roles,
+            params=proc.params,
+            scene=scene,
+            seed=seed,
+            control_rate_hz=rate,
+            operator=operator,
+            recorder=recorder,
+            max_time_s=max_time_s,
+            tension_limit_N=limit,
+            progress=progress,
+            manual_invariant=manual_inv,
+        )
+        summary = interp.run(proc.name, backend)
+    finally:
+        be.close()
+        if isinstance(operator, InteractiveOperator):
+            operator.close()
+    summary_path = write_summary(out_dir / "summary.json", summary)
+    return RunResult(summary, out_dir, trace, summary_path)
+
+
+def _jsonable(value: Any) -> Any:
+    if isinstance(value, bool | int | float | str) or value is None:
+        return value
+    if isinstance(value, list | tuple):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    return str(value)
+
+
+def _until(messages: Iterator[Any], last_ns: int) -> Iterator[Any]:
+    for msg in messages:
+        if msg.log_time_ns <= last_ns and msg.topic != "/meta":
+            yield msg
+
+
+def replay_trace(
+    trace: str | Path,
+    *,
+    check: bool = False,
+    procedure: str | Path | None = None,
+    sets: Sequence[str] | None = None,
+    out: str | Path | None = None,
+) -> ReplayResult:
+    """Re-run the engine against a trace's recorded measurements.
+
+    Args:
+        trace: the recorded trace.
+        check: compare the new commands and events with the recorded ones.
+        procedure: the procedure file (default: the one named in the trace's metadata).
+        sets: ``--set`` overrides (default: those of the recorded run).
+        out: where to write the replay's own trace (default: a temporary file).
+
+    Raises:
+        TraceError: the trace cannot be read.
+        ProcedureLoadError: the procedure does not load.
+    """
+    from backends.replay import ReplayBackend, recorded_operator_events
+    from suture_engine.runtime.interpreter import Interpreter
+    from suture_engine.runtime.recorder import TraceRecorder
+    from suture_engine.trace.golden import DEFAULT_TOLERANCES, compare
+    from suture_engine.trace.reader import TraceReader
+
+    reader = TraceReader(trace)
+    meta = reader.meta
+    extra = meta.get("extra") if isinstance(meta.get("extra"), dict) else meta
+    proc_file = procedure or (extra or {}).get("procedure_file")
+    if not proc_file:
+        raise ProcedureLoadError([f"{trace}: the trace names no procedure file; pass one"])
+    run_sets = list(sets) if sets is not None else list((extra or {}).get("sets") or [])
+    proc, plan = load_plan(proc_file, run_sets)
+    be = ReplayBackend(reader=reader)
+    rate = be.rate
+    tmp_dir = None
+    if out is None:
+        tmp_dir = tempfile.mkdtemp(prefix="suture-replay-")
+        out_path = Path(tmp_dir) / "replay.mcap"
+    else:
+        out_path = Path(out)
+    first = be.reset()
+    recorder = TraceRecorder(
+        out_path,
+        procedure=proc.name,
+        seed=int(meta.get("seed", 0)),
+        control_rate_hz=rate,
+        robots=be.robots,
+        backend=str(meta.get("backend", "replay")),
+        params={k: _jsonable(v) for k, v in proc.params.items()},
+        extra={"procedure_file": str(proc_file), "sets": run_sets},
+    )
+    scene = proc.scene
+    interp = Interpreter(
+        plan,
+        be,
+        first,
+        roles=proc.roles,
+        params=proc.params,
+        scene=scene,
+        seed=int(meta.get("seed", 0)),
+        control_rate_hz=rate,
+        operator=recorded_operator_events(reader, rate),
+        recorder=recorder,
+        max_time_s=float("inf"),
+        tension_limit_N=float(scene.tension_limit) if scene is not None else None,
+    )
+    summary = interp.run(proc.name, "replay")
+    ok, diff = True, ""
+    if check:
+        last_ns = be.last_tick * be.period_ns
+        result = compare(
+            _until(reader.messages(), last_ns),
+            _until(TraceReader(out_path).messages(), last_ns),
+            DEFAULT_TOLERANCES,
+            topics=COMPARED_TOPICS,
+        )
+        ok, diff = result.ok, result.text
+    if tmp_dir is not None:
+        try:
+            os.remove(out_path)
+            os.rmdir(tmp_dir)
+        except OSError:
+            pass
+    return ReplayResult(
+        summary, out_path, ok, diff, be.last_tick + 1, bool(reader.status.truncated)
+    )
