@@ -23,7 +23,6 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from dataclasses import dataclass
-from fractions import Fraction
 from itertools import combinations
 
 from suture_engine.errors import SutureError
@@ -34,6 +33,7 @@ __all__ = [
     "Passage",
     "alexander_polynomial",
     "determinant",
+    "diagram_determinant",
     "format_polynomial",
     "simplify",
     "vassiliev_v2",
@@ -112,6 +112,61 @@ class GaussCode:
             tuple((lab, not over) for lab, over in self.passages),
             {lab: -s for lab, s in self.signs.items()},
         )
+
+    def to_pd(self) -> list[tuple[int, int, int, int]]:
+        """Planar diagram (PD) code, in the KnotTheory / spherogram convention.
+
+        Edge k runs from passage k to passage k+1 of the code. Each crossing
+        is ``(a, b, c, d)``: its four edges counterclockwise, starting from
+        the incoming under edge ``a`` (so ``c`` is the outgoing under edge).
+        For a positive crossing the over strand leaves through ``b``; for a
+        negative one it enters through ``b``.
+        """
+        n = len(self.passages)
+        where = {p: i for i, p in enumerate(self.passages)}
+        pd = []
+        for lab in self.labels():
+            po, pu = where[(lab, True)], where[(lab, False)]
+            under_in, under_out = (pu - 1) % n, pu
+            over_in, over_out = (po - 1) % n, po
+            if self.signs[lab] > 0:
+                pd.append((under_in, over_out, under_out, over_in))
+            else:
+                pd.append((under_in, over_in, under_out, over_out))
+        return pd
+
+    @classmethod
+    def from_braid(cls, word: Sequence[int], strands: int) -> GaussCode:
+        """Gauss code of the closure of a braid.
+
+        Strands run upwards; generator ``+i`` (1-based) lets strand i cross
+        over strand i+1 from left to right, a positive crossing; ``-i`` is
+        its inverse. ``(1, 1, 1)`` on 2 strands is the right-handed trefoil.
+
+        Args:
+            word: braid word, nonzero integers with ``|g| < strands``.
+            strands: number of strands.
+
+        Raises:
+            InvalidGaussCode: a bad generator, or the closure is a link.
+        """
+        if any(g == 0 or abs(g) >= strands for g in word):
+            raise InvalidGaussCode(f"braid word {list(word)} has a generator outside 1..{strands - 1}")
+        passages: list[Passage] = []
+        strand, visited = 0, set()
+        while strand not in visited:
+            visited.add(strand)
+            for j, g in enumerate(word):
+                i = abs(g) - 1
+                if strand == i:
+                    passages.append((j, g > 0))
+                    strand = i + 1
+                elif strand == i + 1:
+                    passages.append((j, g < 0))
+                    strand = i
+        if len(visited) != strands or len(passages) != 2 * len(word):
+            raise InvalidGaussCode(f"the closure of braid {list(word)} is a link, not a knot")
+        return cls(tuple(passages), {j: (1 if g > 0 else -1) for j, g in enumerate(word)})
 
     @classmethod
     def from_signed_sequence(cls, code: Sequence[int], signs: dict[int, int]) -> GaussCode:
@@ -213,16 +268,44 @@ def _exact_div(p: Poly, q: Poly) -> Poly:
     """``p / q`` when q divides p exactly in Z[t] (Bareiss guarantees it)."""
     if not p:
         return ()
-    rem = [Fraction(c) for c in p]
-    quot = [Fraction(0)] * (len(p) - len(q) + 1)
+    rem = list(p)
+    lead = q[-1]
+    quot = [0] * (len(p) - len(q) + 1)
     for k in range(len(quot) - 1, -1, -1):
-        coef = rem[k + len(q) - 1] / q[-1]
+        coef, r = divmod(rem[k + len(q) - 1], lead)
+        if r:
+            raise ArithmeticError("inexact polynomial division")  # pragma: no cover
         quot[k] = coef
-        for j, b in enumerate(q):
-            rem[k + j] -= coef * b
-    if any(rem) or any(c.denominator != 1 for c in quot):
+        if coef:
+            for j, b in enumerate(q):
+                rem[k + j] -= coef * b
+    if any(rem):
         raise ArithmeticError("inexact polynomial division")  # pragma: no cover
-    return _trim([int(c) for c in quot])
+    return _trim(quot)
+
+
+def _int_det(matrix: list[list[int]]) -> int:
+    """Integer determinant by fraction-free (Bareiss) elimination."""
+    m = [row[:] for row in matrix]
+    n = len(m)
+    if n == 0:
+        return 1
+    sign, prev = 1, 1
+    for k in range(n - 1):
+        if m[k][k] == 0:
+            swap = next((r for r in range(k + 1, n) if m[r][k]), None)
+            if swap is None:
+                return 0
+            m[k], m[swap] = m[swap], m[k]
+            sign = -sign
+        mkk = m[k][k]
+        for i in range(k + 1, n):
+            mik = m[i][k]
+            row_i, row_k = m[i], m[k]
+            for j in range(k + 1, n):
+                row_i[j] = (mkk * row_i[j] - mik * row_k[j]) // prev
+        prev = mkk
+    return sign * m[n - 1][n - 1]
 
 
 def _det(matrix: list[list[Poly]]) -> Poly:
@@ -260,28 +343,9 @@ def _normalise(p: Poly) -> Poly:
     return tuple(lst)
 
 
-def alexander_polynomial(code: GaussCode) -> Poly:
-    """Alexander polynomial of the knot, from the diagram's Alexander matrix.
-
-    The diagram has as many arcs as crossings (an arc runs from one
-    underpass to the next). The Wirtinger relation at a crossing with over
-    arc j, incoming under arc i and outgoing under arc i+1 is
-    ``x_{i+1} = x_j^e x_i x_j^-e`` (e the crossing sign); its Fox derivative,
-    abelianised (every generator -> t) and multiplied by a unit, gives the
-    row ``(1 - t) at j, t at i, -1 at i+1`` for e = +1 and
-    ``(t - 1) at j, 1 at i, -t at i+1`` for e = -1. Deleting one row and one
-    column and taking the determinant gives Delta(t) up to +-t^k.
-
-    Returns:
-        coefficients from degree 0 up, normalised so that the lowest degree
-        is 0 and Delta(1) = +1 (the unknot gives ``(1,)``).
-    """
-    code = simplify(code)
-    n = len(code.passages)
-    c = n // 2
-    if c == 0:
-        return (1,)
-    # Start the walk just after an underpass, so arcs are numbered 0..c-1.
+def _alexander_matrix(code: GaussCode) -> list[list[Poly]]:
+    """The c x c Alexander matrix of a diagram (see :func:`alexander_polynomial`)."""
+    c = len(code.passages) // 2
     first_under = next(i for i, (_, over) in enumerate(code.passages) if not over)
     seq = code.passages[first_under + 1 :] + code.passages[: first_under + 1]
     arc_of_position: list[int] = []
@@ -297,9 +361,8 @@ def alexander_polynomial(code: GaussCode) -> Poly:
             over_arc[lab] = arc_of_position[pos]
         else:
             under_in[lab] = arc_of_position[pos]
-    labels = code.labels()
     matrix: list[list[Poly]] = [[() for _ in range(c)] for _ in range(c)]
-    for row, lab in enumerate(labels):
+    for row, lab in enumerate(code.labels()):
         i, j = under_in[lab], over_arc[lab]
         i_out = (i + 1) % c
         if code.signs[lab] > 0:
@@ -308,8 +371,47 @@ def alexander_polynomial(code: GaussCode) -> Poly:
             items = [(j, (-1, 1)), (i, (1,)), (i_out, (0, -1))]
         for col, poly in items:
             matrix[row][col] = _add(matrix[row][col], poly)
+    return matrix
+
+
+def alexander_polynomial(code: GaussCode) -> Poly:
+    """Alexander polynomial of the knot, from the diagram's Alexander matrix.
+
+    The diagram has as many arcs as crossings (an arc runs from one
+    underpass to the next). The Wirtinger relation at a crossing with over
+    arc j, incoming under arc i and outgoing under arc i+1 is
+    ``x_{i+1} = x_j^e x_i x_j^-e`` (e the crossing sign); its Fox derivative,
+    abelianised (every generator -> t) and multiplied by a unit, gives the
+    row ``(1 - t) at j, t at i, -1 at i+1`` for e = +1 and
+    ``(t - 1) at j, 1 at i, -t at i+1`` for e = -1. Deleting one row and one
+    column and taking the determinant (exact Bareiss elimination over Z[t])
+    gives Delta(t) up to +-t^k.
+
+    Returns:
+        coefficients from degree 0 up, normalised so that the lowest degree
+        is 0 and Delta(1) = +1 (the unknot gives ``(1,)``).
+    """
+    code = simplify(code)
+    c = code.crossings
+    if c == 0:
+        return (1,)
+    matrix = _alexander_matrix(code)
     minor = [r[: c - 1] for r in matrix[: c - 1]]
     return _normalise(_det(minor))
+
+
+def diagram_determinant(code: GaussCode) -> int:
+    """Knot determinant ``|Delta(-1)|`` straight from the diagram (integer Bareiss).
+
+    Cheaper than :func:`alexander_polynomial` on large diagrams.
+    """
+    code = simplify(code)
+    c = code.crossings
+    if c == 0:
+        return 1
+    matrix = _alexander_matrix(code)
+    at_minus_one = [[sum(k * (-1) ** e for e, k in enumerate(p)) for p in row] for row in matrix]
+    return abs(_int_det([r[: c - 1] for r in at_minus_one[: c - 1]]))
 
 
 def determinant(alexander: Poly) -> int:

@@ -31,6 +31,7 @@ from suture_engine.suture.gauss_code import (
     GaussCode,
     alexander_polynomial,
     determinant,
+    diagram_determinant,
     format_polynomial,
     simplify,
     vassiliev_v2,
@@ -121,6 +122,8 @@ class KnotReport:
         direction: unit projection direction of the chosen diagram.
         crossing_list: the chosen projection's crossings, for debugging.
         gauss_code: the chosen projection's signed Gauss code (unreduced).
+        essential: labels of the chosen projection's crossings that survive
+            the Reidemeister reduction (they locate the knot).
     """
 
     type: KnotType
@@ -139,6 +142,7 @@ class KnotReport:
     direction: tuple[float, float, float]
     crossing_list: tuple[ProjectedCrossing, ...]
     gauss_code: GaussCode
+    essential: tuple[int, ...]
 
     def to_dict(self) -> dict[str, object]:
         """A JSON-ready summary (no crossing list)."""
@@ -448,7 +452,7 @@ def classify_knot(
             continue
         reduced = simplify(code)
         key = (
-            determinant(alexander_polynomial(reduced)),
+            diagram_determinant(reduced),
             vassiliev_v2(reduced),
             vassiliev_v3(reduced),
         )
@@ -481,4 +485,5 @@ def classify_knot(
         direction=(float(direction[0]), float(direction[1]), float(direction[2])),
         crossing_list=crossings,
         gauss_code=code,
+        essential=tuple(sorted(reduced.signs)),
     )
