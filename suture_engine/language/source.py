@@ -144,10 +144,12 @@ class _Builder:
                     raise self.fail("yaml-tag", "merge keys (<<) are not allowed", key_node, path)
                 if not isinstance(key_node, yaml.ScalarNode):
                     raise self.fail("yaml-key", "mapping keys must be scalars", key_node, path)
-                key = self.build(key_node, (*path, "<key>"), depth + 1)
-                if not isinstance(key, (str, int, float, bool)) and key is not None:
-                    raise self.fail("yaml-key", "mapping keys must be scalars", key_node, path)
-                key = str(key) if not isinstance(key, str) else key
+                if key_node.tag not in _SCALAR_TAGS:
+                    raise self.fail(
+                        "yaml-tag", f"tag {key_node.tag!r} is not allowed", key_node, path
+                    )
+                # keys keep their text: YAML 1.1 would read `on:` as the boolean true
+                key = str(key_node.value)
                 if key in out:
                     raise self.fail(
                         "duplicate-key", f"duplicate key {key!r}", key_node, (*path, key)
@@ -157,7 +159,6 @@ class _Builder:
                     key_node.start_mark.column + 1,
                 )
                 out[key] = self.build(value_node, (*path, key), depth + 1)
-            self.source.positions.pop((*path, "<key>"), None)
             return out
         raise self.fail("yaml-syntax", "unsupported YAML node", node, path)  # pragma: no cover
 
