@@ -2,7 +2,9 @@
 
 Run: ``python benchmarks/robot_call_cost.py``. The 1 kHz budget target is
 FK + Jacobian + gravity + one controller update <= 20 µs median together; the
-controller update is measured by the control library's own benchmark.
+controller update is measured by the control library's own benchmark. The
+last rows are the simulated robot's per-tick cost (friction solve + PyBullet
+step), for a sense of the physics budget.
 """
 
 from __future__ import annotations
@@ -20,10 +22,10 @@ REPEATS = 31
 NUMBER = 2000
 
 
-def per_call_us(fn: Callable[[], object]) -> float:
-    """Median per-call time [µs] over REPEATS batches of NUMBER calls."""
-    times = timeit.repeat(fn, number=NUMBER, repeat=REPEATS)
-    return statistics.median(times) / NUMBER * 1e6
+def per_call_us(fn: Callable[[], object], number: int = NUMBER) -> float:
+    """Median per-call time [µs] over REPEATS batches of ``number`` calls."""
+    times = timeit.repeat(fn, number=number, repeat=REPEATS)
+    return statistics.median(times) / number * 1e6
 
 
 def main() -> None:
@@ -48,6 +50,26 @@ def main() -> None:
     hot = ("forward_kinematics", "jacobian (out=)", "gravity_vector (out=)")
     total = sum(results[name] for name in hot)
     print(f"{'FK + Jacobian + gravity':<28}{total:>16.2f}")
+    sim_rows()
+
+
+def sim_rows() -> None:
+    """Per-tick cost of :class:`backends.pybullet.robot.EndoBotSim`, one robot, DIRECT."""
+    import pybullet as p
+
+    from backends.pybullet.robot import EndoBotSim
+
+    cid = p.connect(p.DIRECT)
+    try:
+        p.setGravity(0.0, 0.0, -9.81, physicsClientId=cid)
+        sim = EndoBotSim(cid)
+        tau = np.array([0.1, 0.1, 0.01, 2.0])
+        apply_us = per_call_us(lambda: sim.apply(tau), number=200)
+        step_us = per_call_us(lambda: sim.step(tau), number=200)
+    finally:
+        p.disconnect(cid)
+    print(f"{'EndoBotSim.apply (friction)':<28}{apply_us:>16.2f}")
+    print(f"{'EndoBotSim.step (+physics)':<28}{step_us:>16.2f}")
 
 
 if __name__ == "__main__":
