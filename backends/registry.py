@@ -19,6 +19,7 @@ ENTRY_POINT_GROUP = "suture_engine.backends"
 _BUILTIN: dict[str, str] = {
     "pybullet": "backends.pybullet.backend:PyBulletBackend",
     "replay": "backends.replay:ReplayBackend",
+    "ideal": "suture_engine.runtime.testing:IdealBackend",
 }
 _REGISTERED: dict[str, Callable[..., Any]] = {}
 

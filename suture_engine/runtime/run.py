@@ -290,7 +290,7 @@ def _jsonable(value: Any) -> Any:
 
 def _until(messages: Iterator[Any], last_ns: int) -> Iterator[Any]:
     for msg in messages:
-        if msg.log_time_ns <= last_ns and msg.topic != "/meta":
+        if msg.log_time_ns <= last_ns:
             yield msg
 
 
