@@ -88,6 +88,50 @@ def replay(
     raise typer.Exit(replay_command(trace, check=check, procedure=procedure, sets=set_ or None))
 
 
+@app.command()
+def validate(
+    files: Annotated[list[Path], typer.Argument(help="Procedure files (YAML).")],
+    format_: Annotated[
+        str, typer.Option("--format", help="text (file:line:col: code: message) or json.")
+    ] = "text",
+    allow_outside: Annotated[
+        bool, typer.Option(help="Allow use:/scene paths outside each procedure's folder tree.")
+    ] = False,
+    set_: Annotated[
+        list[str] | None,
+        typer.Option("--set", help="Override a procedure parameter: name=value (repeatable)."),
+    ] = None,
+) -> None:
+    """Check procedures without running them; report every problem."""
+    from suture_engine.validation.report import validate_command
+
+    raise typer.Exit(
+        validate_command(files, fmt=format_, allow_outside=allow_outside, sets=set_ or [])
+    )
+
+
+@app.command()
+def schema() -> None:
+    """Print the JSON Schema of the procedure language (for editors)."""
+    from suture_engine.validation.report import schema_command
+
+    raise typer.Exit(schema_command())
+
+
+@app.command()
+def graph(
+    file: Annotated[Path, typer.Argument(help="The procedure file (YAML).")],
+    format_: Annotated[str, typer.Option("--format", help="mermaid or dot.")] = "mermaid",
+    allow_outside: Annotated[
+        bool, typer.Option(help="Allow use:/scene paths outside the procedure's folder tree.")
+    ] = False,
+) -> None:
+    """Draw the procedure's state machine (each state with its skill and invariant)."""
+    from suture_engine.validation.report import graph_command
+
+    raise typer.Exit(graph_command(file, fmt=format_, allow_outside=allow_outside))
+
+
 def main() -> None:
     """Entry point of the ``suture`` console script."""
     app()

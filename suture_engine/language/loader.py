@@ -87,13 +87,20 @@ class _Context:
     scenes: dict[Path, Scene | None] = field(default_factory=dict)
 
 
-def load(path: str | os.PathLike[str], *, allow_outside: bool = False) -> LoadResult:
+def load(
+    path: str | os.PathLike[str],
+    *,
+    allow_outside: bool = False,
+    params: Mapping[str, Any] | None = None,
+) -> LoadResult:
     """Load a procedure file, collecting every problem.
 
     Args:
         path: the procedure file.
         allow_outside: allow ``use:`` and scene paths outside the procedure's folder tree
             (a file may also allow it with ``includes_outside: true``).
+        params: values overriding the procedure's parameter defaults, written as in
+            YAML (``{"algorithm": 3, "tail": "20 mm"}``); checked like a ``use:``'s ``with``.
 
     Returns:
         The procedure (possibly incomplete) and the problems found.
@@ -105,7 +112,15 @@ def load(path: str | os.PathLike[str], *, allow_outside: bool = False) -> LoadRe
         doc = load_yaml_file(file, display)
     except ProblemError as exc:
         return LoadResult(None, exc.problems)
-    proc = _load_document(ctx, doc.data, doc.source, file.resolve(), None, None, None, [])
+    binding = None
+    if params is not None:
+        source = doc.source
+
+        def locate(code: str, message: str, key: str) -> Problem:
+            return source.problem(code, f"(override) {message}", ("params", key))
+
+        binding = _Binding(dict(params), locate)
+    proc = _load_document(ctx, doc.data, doc.source, file.resolve(), binding, None, None, [])
     return LoadResult(proc, _dedupe(ctx.problems))
 
 
@@ -121,13 +136,18 @@ def load_text(text: str, file: str = "<text>", *, base: Path | None = None) -> L
     return LoadResult(proc, _dedupe(ctx.problems))
 
 
-def load_procedure(path: str | os.PathLike[str], *, allow_outside: bool = False) -> Procedure:
-    """Load a procedure file that must be free of loading problems.
+def load_procedure(
+    path: str | os.PathLike[str],
+    *,
+    allow_outside: bool = False,
+    params: Mapping[str, Any] | None = None,
+) -> Procedure:
+    """Load a procedure file that must be free of loading problems (see :func:`load`).
 
     Raises:
         ProblemError: carrying every problem found.
     """
-    result = load(path, allow_outside=allow_outside)
+    result = load(path, allow_outside=allow_outside, params=params)
     if result.problems or result.procedure is None:
         raise ProblemError(result.problems or [Problem("invalid", "not a procedure", str(path))])
     return result.procedure
@@ -175,7 +195,7 @@ def _load_document(
     scene = caller_scene
     if scene is None and head.scene is not None:
         scene = _load_scene(ctx, head, source, file, names)
-    elif scene is None and binding is None and not stack:
+    elif scene is None and not stack:
         add(source.problem("missing-scene", "the procedure names no scene", ("procedure",)))
     if scene is not None:
         names.update(_scene_namespaces(scene))

@@ -20,7 +20,7 @@ from __future__ import annotations
 import difflib
 import os
 from collections import deque
-from collections.abc import Iterator
+from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any
 
 from suture_engine.language.model import MAX_RETRY, FailurePolicy
@@ -39,16 +39,22 @@ PLANNED_EVENTS = frozenset({"done"})
 """Events that advance the procedure as planned; every other event is a failure."""
 
 
-def validate_file(path: str | os.PathLike[str], *, allow_outside: bool = False) -> list[Problem]:
-    """Every problem of a procedure file, sorted by file and position.
+def validate_file(
+    path: str | os.PathLike[str],
+    *,
+    allow_outside: bool = False,
+    params: Mapping[str, Any] | None = None,
+) -> list[Problem]:
+    """Every problem of a procedure file: the loader's, then the semantic checks'.
 
     Args:
         path: the procedure file.
         allow_outside: allow includes outside the procedure's folder tree.
+        params: parameter values overriding the defaults (as written in YAML).
     """
     from suture_engine.language.loader import load
 
-    result = load(path, allow_outside=allow_outside)
+    result = load(path, allow_outside=allow_outside, params=params)
     problems = list(result.problems)
     if result.procedure is not None:
         problems.extend(check_procedure(result.procedure))

@@ -1,0 +1,59 @@
+"""The JSON Schema of the procedure language, for editors (``suture schema``).
+
+The schema is the document model's, with each state's ``with`` tied to the
+parameter model of the skill it names (an ``if``/``then`` per registered
+skill), so that an editor completes and checks skill parameters too.
+Quantities accept a number (SI) or a string such as ``"20 mm"``; any value may
+also be a ``${...}`` expression, which the schema cannot check.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any, Literal
+
+if TYPE_CHECKING:
+    from pydantic import BaseModel
+
+__all__ = ["SCHEMA_ID", "procedure_schema"]
+
+SCHEMA_ID = "https://suture-engine.invalid/schema/procedure.json"
+"""The ``$id`` of the schema."""
+
+
+def procedure_schema() -> dict[str, Any]:
+    """The JSON Schema (draft 2020-12) of a procedure file."""
+    from pydantic.json_schema import models_json_schema
+
+    from skills.registry import available_skills, get_skill
+    from suture_engine.language.model import ProcedureDocument
+
+    skills = {}
+    for name in available_skills():
+        try:
+            skills[name] = get_skill(name)
+        except Exception:  # a broken third-party skill must not break the schema
+            continue
+    models: list[tuple[type[BaseModel], Literal["validation"]]] = [
+        (ProcedureDocument, "validation")
+    ]
+    models += [(cls.Params, "validation") for cls in skills.values()]
+    refs, schema = models_json_schema(models, ref_template="#/$defs/{model}")
+    defs = schema.setdefault("$defs", {})
+    state = defs.get("StateDocument")
+    if state is not None:
+        state["allOf"] = [
+            {
+                "if": {"properties": {"skill": {"const": name}}, "required": ["skill"]},
+                "then": {"properties": {"with": refs[(cls.Params, "validation")]}},
+            }
+            for name, cls in skills.items()
+        ]
+        state["properties"]["skill"] = {"enum": sorted(skills), "type": "string"}
+    root = refs[(ProcedureDocument, "validation")]
+    return {
+        "$schema": "https://json-schema.org/draft/2020-12/schema",
+        "$id": SCHEMA_ID,
+        "title": "suture-engine procedure",
+        **root,
+        "$defs": defs,
+    }
