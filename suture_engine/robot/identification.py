@@ -170,30 +170,40 @@ def least_squares(phi: ArrayLike, y: ArrayLike) -> tuple[FloatArray, float]:
 
 
 def estimate_motion(
-    q: ArrayLike, dt: float, cutoff_hz: float = 10.0
+    q: ArrayLike, dt: float, cutoff_hz: float | None = 10.0
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Zero-phase low-pass positions and differentiate them twice (offline).
+    """Velocities and accelerations aligned with the torque samples (offline).
 
-    A 4th-order Butterworth run forwards and backwards (no lag), then central
-    differences. The same filter should be applied to the torque
-    (:func:`lowpass`) so both sides of (3.60) see the same filtering.
+    Sample ``k`` of a record pairs the position ``q[k]`` at the start of control
+    period ``k`` with the torque ``tau[k]`` held during it. Over that period the
+    robot goes from ``q[k]`` to ``q[k+1]``, so the period's velocity is
+    ``v[k] = (q[k+1] - q[k]) / dt`` (the velocity at its end) and its
+    acceleration ``a[k] = (q[k+1] - 2 q[k] + q[k-1]) / dt^2``. Positions are
+    first low-passed forwards and backwards (4th-order Butterworth, no lag);
+    the same filter should be applied to the torque (:func:`lowpass`) so both
+    sides of (3.60) see the same filtering. The first and last samples have no
+    neighbours and are NaN.
 
     Args:
         q: measured positions [rad or m], shape ``(m,)``.
         dt: sampling time [s].
-        cutoff_hz: low-pass corner [Hz].
+        cutoff_hz: low-pass corner [Hz]; ``None`` for no filtering (clean data).
 
     Returns:
-        ``(q_f, qd, qdd)`` [rad, rad/s, rad/s^2].
+        ``(q_f, v, a)`` [rad, rad/s, rad/s^2].
     """
-    qf = lowpass(q, dt, cutoff_hz)
-    qd = np.gradient(qf, dt)
-    qdd = np.gradient(qd, dt)
-    return qf, qd, qdd
+    qf = np.asarray(q, dtype=float) if cutoff_hz is None else lowpass(q, dt, cutoff_hz)
+    v = np.full_like(qf, np.nan)
+    a = np.full_like(qf, np.nan)
+    v[:-1] = np.diff(qf) / dt
+    a[1:-1] = np.diff(qf, 2) / (dt * dt)
+    return qf, v, a
 
 
-def lowpass(x: ArrayLike, dt: float, cutoff_hz: float) -> FloatArray:
-    """Zero-phase 4th-order Butterworth low-pass (``scipy.signal.filtfilt``)."""
+def lowpass(x: ArrayLike, dt: float, cutoff_hz: float | None) -> FloatArray:
+    """Zero-phase 4th-order Butterworth low-pass (``scipy.signal.filtfilt``); ``None``: identity."""
+    if cutoff_hz is None:
+        return np.asarray(x, dtype=np.float64).copy()
     from scipy import signal
 
     b, a = signal.butter(4, cutoff_hz * 2.0 * dt)
@@ -248,7 +258,7 @@ def energy_regressor(
 
     Args:
         q: positions [rad or m].
-        qd: velocities [rad/s or m/s] (from a washout filter, no accelerations needed).
+        qd: velocity over each period [rad/s or m/s] (no accelerations needed).
         tau: applied torques [N m or N].
         dt: sampling time [s].
         shape: the joint's gravity shape.
@@ -262,9 +272,10 @@ def energy_regressor(
     if window < 2 or window >= m:
         raise IdentificationError(f"window of {window} samples for {m} samples")
 
-    # Trapezoidal running integrals, sampled at the window edges.
+    # Running integrals by the rectangle rule: period k contributes f[k] dt, with
+    # qd[k] the velocity over period k (see :func:`estimate_motion`).
     def running(f: FloatArray) -> FloatArray:
-        return np.concatenate([[0.0], np.cumsum(0.5 * (f[1:] + f[:-1]) * dt)])
+        return np.concatenate([[0.0], np.cumsum(f * dt)])
 
     power = running(tau * qd)
     absv = running(np.abs(qd))
@@ -272,9 +283,11 @@ def energy_regressor(
     edges = np.arange(0, m, window)
     a, b = edges[:-1], edges[1:]
     pot = shape.potential(q)
+    # Energy at an edge: the velocity entering it (period before) and its position.
+    v_in = np.concatenate([[qd[0]], qd[:-1]])
     rows = np.column_stack(
         [
-            0.5 * (qd[b] ** 2 - qd[a] ** 2),
+            0.5 * (v_in[b] ** 2 - v_in[a] ** 2),
             g * (pot[b] - pot[a]),
             absv[b] - absv[a],
             sq[b] - sq[a],
@@ -302,7 +315,7 @@ def fit_differential(
     dt: float,
     shape: GravityShape,
     *,
-    cutoff_hz: float = 10.0,
+    cutoff_hz: float | None = 10.0,
     friction: FrictionEstimate | None = None,
     trim: float = 0.5,
     deadband: float = 0.0,
@@ -314,7 +327,8 @@ def fit_differential(
         tau: applied torques [N m or N].
         dt: sampling time [s].
         shape: the joint's gravity shape.
-        cutoff_hz: low-pass corner applied to both positions and torques [Hz].
+        cutoff_hz: low-pass corner applied to both positions and torques [Hz];
+            ``None`` for clean data.
         friction: if given, subtract this friction and fit only ``I`` and ``ml``.
         trim: seconds dropped at each end (filter edge effects) [s].
         deadband: speed below which ``sgn`` ramps [rad/s].
@@ -323,6 +337,8 @@ def fit_differential(
         The estimate.
     """
     qf, qd, qdd = estimate_motion(q, dt, cutoff_hz)
+    qd = np.nan_to_num(qd)  # end samples, trimmed below
+    qdd = np.nan_to_num(qdd)
     tf = lowpass(tau, dt, cutoff_hz)
     phi = differential_regressor(qf, qd, qdd, shape, deadband=deadband)
     # Parallel filtering: the nonlinear columns get the filter the torque got, since
@@ -330,7 +346,7 @@ def fit_differential(
     for c in (1, 2):
         if np.any(phi[:, c]):
             phi[:, c] = lowpass(phi[:, c], dt, cutoff_hz)
-    k = max(1, int(trim / dt))
+    k = max(2, int(trim / dt))
     sl = slice(k, qf.size - k)
     phi = phi[sl]
     y = tf[sl]
@@ -351,11 +367,12 @@ def fit_differential(
 
 def fit_energy(
     q: ArrayLike,
-    qd: ArrayLike,
     tau: ArrayLike,
     dt: float,
     shape: GravityShape,
     *,
+    qd: ArrayLike | None = None,
+    cutoff_hz: float | None = None,
     window: int = 100,
     friction: FrictionEstimate | None = None,
 ) -> JointEstimate:
@@ -363,10 +380,12 @@ def fit_energy(
 
     Args:
         q: measured positions [rad or m].
-        qd: velocity estimates [rad/s or m/s].
         tau: applied torques [N m or N].
         dt: sampling time [s].
         shape: the joint's gravity shape.
+        qd: velocity over each period [rad/s or m/s] (e.g. a washout filter's);
+            by default differenced from (optionally low-passed) positions.
+        cutoff_hz: low-pass corner for positions and torques [Hz]; ``None``: none.
         window: samples per energy window.
         friction: friction identified first (3.5.3.1); if ``None`` all four
             parameters are fitted together (ill-conditioned, Table 3.2).
@@ -374,8 +393,14 @@ def fit_energy(
     Returns:
         The estimate.
     """
-    q_, qd_, tau_ = (np.asarray(x, dtype=float) for x in (q, qd, tau))
-    rows, work = energy_regressor(q_, qd_, tau_, dt, shape, window=window)
+    q_ = np.asarray(q, dtype=float)
+    if qd is None:
+        q_, v, _ = estimate_motion(q_, dt, cutoff_hz)
+    else:
+        v = np.asarray(qd, dtype=float)
+    tau_ = lowpass(tau, dt, cutoff_hz)
+    sl = slice(1, q_.size - 1)
+    rows, work = energy_regressor(q_[sl], v[sl], tau_[sl], dt, shape, window=window)
     cols = _active(shape)
     if friction is not None:
         work = work - friction.coulomb * rows[:, 2] - friction.viscous * rows[:, 3]
