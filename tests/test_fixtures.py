@@ -121,3 +121,11 @@ def test_bad_geometry_is_a_typed_error(build, field: str) -> None:  # type: igno
         build()
     assert err.value.field == field
     assert err.value.code == "bad-fixture"
+
+
+@pytest.mark.parametrize("fx", FIXTURES, ids=lambda f: f.name)
+def test_linearize_is_value_and_jacobian(fx: Fixture) -> None:
+    for x in _points(4, n=5):
+        c, jc = fx.linearize(x)
+        np.testing.assert_allclose(c, fx.value(x), atol=1e-15)
+        np.testing.assert_allclose(jc, fx.jacobian(x), atol=1e-15)

@@ -24,6 +24,7 @@ is held and the failure counted (``failures``, ``consecutive_failures``).
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
@@ -135,7 +136,7 @@ class QPWeights:
         fixture_gain: k_c, constraint error feedback [1/s] (C-dot = -k_c C).
     """
 
-    task: Array = field(default_factory=lambda: np.array([1.0, 1.0, 1.0, 1e-3]))
+    task: Array = field(default_factory=lambda: np.array([1.0, 1.0, 1.0, 1e-2]))
     damping: float = 1e-4
     slack: float = 1e6
     position_gain: float = 10.0
@@ -212,7 +213,6 @@ class ConstrainedQP:
         m_soft = m_fix + (1 if extension_rate else 0)
         self.n = _N + m_soft
         self.m = _N + m_soft
-        self._m_fix = m_fix
         self._m_soft = m_soft
         names = [f"joint_bound[{j}]" for j in range(_N)]
         eq_rows = []
@@ -224,19 +224,38 @@ class ConstrainedQP:
         if extension_rate:
             names.append("extension_rate")
         self.row_names: tuple[str, ...] = tuple(names)
-        self._eq_rows = np.array(eq_rows, dtype=int)
         self._eq_set = frozenset(eq_rows)
-        self._bound_src = ["", "", "", ""]
 
-        # Dense images of the changing blocks (filled in place each tick).
+        # Preallocated buffers, and views into them, filled in place every tick.
+        w = self.weights
         self._H = np.zeros((_N, _N))
         self._JW = np.zeros((_N, _N))
-        self._G = np.zeros((m_soft, _N))  # rows of A over qdot for the soft rows
+        self._damp = np.eye(_N) * w.damping
+        # G: the soft rows of A over qdot, stored flat with a trailing 1.0 so that one
+        # np.take fills every value of A (the identity entries point at that 1.0).
+        self._gflat = np.zeros(m_soft * _N + 1)
+        self._gflat[-1] = 1.0
+        self._G = self._gflat[:-1].reshape(m_soft, _N)
         self._q = np.zeros(self.n)
-        self._l = np.zeros(self.m)
-        self._u = np.zeros(self.m)
+        self._l = np.full(self.m, -INF)
+        self._u = np.full(self.m, INF)
+        self._q_qd = self._q[:_N]
+        self._l_qd = self._l[:_N]
+        self._u_qd = self._u[:_N]
         self._vref = np.zeros(_N)
         self._qdot = np.zeros(_N)
+        self._tmp4 = np.zeros(_N)
+        self._ax = np.zeros(self.m)
+        self._fix_views = []
+        r = 0
+        for fx in self.fixtures:
+            rows = slice(_N + r, _N + r + fx.rows)
+            self._fix_views.append(
+                (fx, self._G[r : r + fx.rows], self._l[rows], self._u[rows], fx.kind == "eq")
+            )
+            r += fx.rows
+        self._ext_row = _N + r
+        self._ext_g = self._G[r] if extension_rate else None
 
         # P: dense upper triangle over qdot, diagonal over the slacks.
         rows_p, cols_p = [], []
@@ -248,14 +267,16 @@ class ConstrainedQP:
         rows_p += list(range(_N, self.n))
         cols_p += list(range(_N, self.n))
         self._Px = np.ones(len(rows_p))
-        self._Px[len(self._p_idx) :] = self.weights.slack
+        self._Px[len(self._p_idx) :] = w.slack
+        self._Px_qd = self._Px[: len(self._p_idx)]
         P = sp.csc_matrix((self._Px.copy(), (rows_p, cols_p)), shape=(self.n, self.n))
         # A: identity over qdot for the bounds; dense soft block; identity over the slacks.
+        one = m_soft * _N
         rows_a, cols_a, gidx = [], [], []
         for j in range(_N):
             rows_a.append(j)
             cols_a.append(j)
-            gidx.append(-1)
+            gidx.append(one)
             for r in range(m_soft):
                 rows_a.append(_N + r)
                 cols_a.append(j)
@@ -263,17 +284,14 @@ class ConstrainedQP:
         for r in range(m_soft):
             rows_a.append(_N + r)
             cols_a.append(_N + r)
-            gidx.append(-1)
+            gidx.append(one)
         A = sp.csc_matrix((np.ones(len(rows_a)), (rows_a, cols_a)), shape=(self.m, self.n))
         # The entries were listed column by column, rows ascending: CSC order, so data
         # position k of A is entry k of the lists above. Check it once.
         if A.nnz != len(rows_a) or not np.array_equal(A.indices, rows_a):
             raise QPError("A", A.nnz, "unexpected sparsity layout")
-        gidx_arr = np.array(gidx)
-        self._a_pos = np.flatnonzero(gidx_arr >= 0)
-        self._a_src = gidx_arr[self._a_pos]
+        self._a_idx = np.array(gidx)
         self._Ax = np.ones(len(rows_a))
-        self._a_vals = np.zeros(len(self._a_pos))
 
         defaults: dict[str, Any] = {
             "verbose": False,
@@ -287,10 +305,6 @@ class ConstrainedQP:
             "adaptive_rho": True,
         }
         defaults.update(settings or {})
-        self._lo = np.zeros(_N)
-        self._hi = np.zeros(_N)
-        self._l[:] = -INF
-        self._u[:] = INF
         self._solver = _osqp().OSQP()
         self._solver.setup(P, self._q, A, self._l, self._u, **defaults)
         # OSQP's compiled solver object: its update_data_vec/update_data_mat/solve are
@@ -305,17 +319,12 @@ class ConstrainedQP:
         self._qmax_h = lim.q_max / lim.horizon
         self._inv_h = 1.0 / lim.horizon
         self._neg_qd = -lim.qd_max
-        self._q2_edge = np.pi / 2 - lim.q2_margin
-        self._ax = np.zeros(self.m)
-        self._tmp = np.zeros(self.m)
-        self._hit = np.zeros(self.m, dtype=bool)
-        self._tol_u = np.zeros(self.m)
-        self._ubuf = np.zeros(_N)
+        self._q2_edge = math.pi / 2 - lim.q2_margin
 
     # ------------------------------------------------------------------ assembly
     def _joint_bounds(self, q: Array) -> None:
         lim = self.limits
-        lo, hi, tmp = self._lo, self._hi, self._ubuf
+        lo, hi, tmp = self._l_qd, self._u_qd, self._tmp4
         np.multiply(q, self._inv_h, out=tmp)
         np.subtract(self._qmin_h, tmp, out=lo)
         np.subtract(self._qmax_h, tmp, out=hi)
@@ -330,10 +339,8 @@ class ConstrainedQP:
         b = (lim.q4_min - q4) * inv_tau
         if b > lo[3]:
             lo[3] = b
-        np.minimum(lo, lim.qd_max, out=lo)
-        np.maximum(lo, self._neg_qd, out=lo)
-        np.minimum(hi, lim.qd_max, out=hi)
-        np.maximum(hi, self._neg_qd, out=hi)
+        np.clip(lo, self._neg_qd, lim.qd_max, out=lo)
+        np.clip(hi, self._neg_qd, lim.qd_max, out=hi)
         # Outside a bound already: move back (at most at the speed limit), never an empty box.
         np.maximum(hi, lo, out=hi)
 
@@ -386,52 +393,53 @@ class ConstrainedQP:
         extension_rate_max: float | None,
     ) -> None:
         w = self.weights
-        # P over qdot: J^T W J + lambda I.
-        np.multiply(J.T, w.task, out=self._JW)
-        np.matmul(self._JW, J, out=self._H)
-        self._H.flat[:: _N + 1] += w.damping
-        np.take(self._H, self._p_idx, out=self._Px[: len(self._p_idx)])
-        # q over qdot: -J^T W v_ref.
+        # P over qdot: J^T W J + lambda I (upper triangle, column-major, by one take).
+        JW = self._JW
+        np.multiply(J.T, w.task, out=JW)
+        np.matmul(JW, J, out=self._H)
+        self._H += self._damp
+        np.take(self._H, self._p_idx, out=self._Px_qd)
+        # q over qdot: -J^T W v_ref, v_ref = v_target + K_x (x_target - x).
         vref = self._vref
-        if v_target is not None:
+        if x_target is not None:
+            np.subtract(x_target, x, out=vref)
+            vref *= w.position_gain
+            if v_target is not None:
+                vref += v_target
+        elif v_target is not None:
             vref[:] = v_target
         else:
-            vref[:] = 0.0
-        if x_target is not None:
-            vref += w.position_gain * (np.asarray(x_target) - x)
-        np.matmul(self._JW, vref, out=self._q[:_N])
-        self._q[:_N] *= -1.0
+            vref.fill(0.0)
+        np.matmul(JW, vref, out=self._q_qd)
+        np.negative(self._q_qd, out=self._q_qd)
         # Bounds over qdot.
         self._joint_bounds(q)
-        self._l[:_N] = self._lo
-        self._u[:_N] = self._hi
-        # Soft rows.
-        r = 0
-        for fx in self.fixtures:
-            m = fx.rows
-            np.matmul(fx.jacobian(x), J, out=self._G[r : r + m])
-            rhs = fx.value(x)
-            rhs *= -w.fixture_gain
-            self._u[_N + r : _N + r + m] = rhs
-            self._l[_N + r : _N + r + m] = rhs if fx.kind == "eq" else -INF
-            r += m
-        if self.extension_rate:
-            row = _N + r
+        # Fixture rows: Jc J qdot + s (=|<=) -k_c C(x).
+        kc = -w.fixture_gain
+        for fx, g_rows, l_rows, u_rows, is_eq in self._fix_views:
+            c, jc = fx.linearize(x)
+            np.matmul(jc, J, out=g_rows)
+            np.multiply(c, kc, out=u_rows)
+            if is_eq:
+                l_rows[:] = u_rows
+        # Extension rate: (p - e)^T / |p - e| J_p qdot + s <= ldot_max.
+        g_ext = self._ext_g
+        if g_ext is not None:
+            row = self._ext_row
             if exit_point is None or extension_rate_max is None:
-                self._G[r] = 0.0
-                self._l[row], self._u[row] = -INF, INF
+                g_ext.fill(0.0)
+                self._u[row] = INF
             else:
-                d = x[:3] - exit_point
-                dist = float(np.sqrt(d @ d))
+                dx = float(x[0]) - float(exit_point[0])
+                dy = float(x[1]) - float(exit_point[1])
+                dz = float(x[2]) - float(exit_point[2])
+                dist = math.sqrt(dx * dx + dy * dy + dz * dz)
                 if dist > 1e-9:
-                    d /= dist
-                    np.matmul(d, J[:3], out=self._G[r])
+                    g_ext[:] = (dx * J[0] + dy * J[1] + dz * J[2]) / dist
                 else:
-                    self._G[r] = 0.0
-                self._l[row] = -INF
+                    g_ext.fill(0.0)
                 self._u[row] = extension_rate_max
-        np.take(self._G, self._a_src, out=self._a_vals)
-        self._Ax[self._a_pos] = self._a_vals
+        np.take(self._gflat, self._a_idx, out=self._Ax)
 
     def _finish(self, status: str, iters: int, solve_time: float, z: Array | None) -> QPResult:
         self.solves += 1

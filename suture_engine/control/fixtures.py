@@ -13,6 +13,7 @@ it is then a stiffness [N/m] and a deviation from it is a distance [m].
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import Literal
 
@@ -100,6 +101,10 @@ class Fixture:
         """Constraint Jacobian Jc(x) = dC/dx (6.2), shape (m, 4)."""
         raise NotImplementedError
 
+    def linearize(self, x: Array) -> tuple[Array, Array]:
+        """C(x) and Jc(x) together (the per-tick call of the QP); treat both as read-only."""
+        return self.value(x), self.jacobian(x)
+
 
 @dataclass(frozen=True, eq=False)
 class EqualityFixture(Fixture):
@@ -178,6 +183,11 @@ class Line(EqualityFixture):
         """Jc (6.32): constant, shape (2, 4)."""
         jc: Array = self._jc  # type: ignore[attr-defined]
         return jc.copy()
+
+    def linearize(self, x: Array) -> tuple[Array, Array]:
+        """C(x) and the constant Jc (shared, read-only)."""
+        jc: Array = self._jc  # type: ignore[attr-defined]
+        return jc[:, :3] @ (x[:3] - self.point), jc
 
     def free(self, x: Array) -> Array:
         """f(x) = (arc length along the line, roll) (6.40) [m, rad]."""
@@ -326,6 +336,11 @@ class Plane(EqualityFixture):
         jc: Array = self._jc  # type: ignore[attr-defined]
         return jc.copy()
 
+    def linearize(self, x: Array) -> tuple[Array, Array]:
+        """C(x) and the constant Jc (shared, read-only)."""
+        jc: Array = self._jc  # type: ignore[attr-defined]
+        return jc[:, :3] @ (x[:3] - self.point), jc
+
     def free(self, x: Array) -> Array:
         """f(x) = (u . (p - p0), v . (p - p0), phi) [m, m, rad]."""
         xx = np.asarray(x, dtype=float)
@@ -367,6 +382,9 @@ class Cone(Fixture):
         object.__setattr__(self, "axis", _unit(self.axis, "cone", "axis"))
         if not (0.0 < self.half_angle < np.pi / 2):
             raise FixtureError("cone", "half_angle", self.half_angle, "must be in (0, pi/2) [rad]")
+        object.__setattr__(self, "_axis_t", tuple(float(v) for v in self.axis))
+        object.__setattr__(self, "_apex_t", tuple(float(v) for v in self.apex))
+        object.__setattr__(self, "_cos_t", math.cos(self.half_angle))
         object.__setattr__(self, "rows", 1)
         object.__setattr__(self, "name", "cone")
         object.__setattr__(self, "kind", "ineq")
@@ -375,6 +393,17 @@ class Cone(Fixture):
         """g(x) [m]; shape (1,)."""
         d = np.asarray(x, dtype=float)[:3] - self.apex
         return np.array([np.cos(self.half_angle) * np.linalg.norm(d) - float(self.axis @ d)])
+
+    def linearize(self, x: Array) -> tuple[Array, Array]:
+        """g(x) and dg/dx in one pass on plain floats."""
+        ax, ay, az = self._axis_t  # type: ignore[attr-defined]
+        px, py, pz = self._apex_t  # type: ignore[attr-defined]
+        ca = self._cos_t  # type: ignore[attr-defined]
+        dx, dy, dz = float(x[0]) - px, float(x[1]) - py, float(x[2]) - pz
+        dist = math.sqrt(dx * dx + dy * dy + dz * dz)
+        g = ca * dist - (ax * dx + ay * dy + az * dz)
+        k = ca / dist if dist > 1e-12 else 0.0
+        return np.array([g]), np.array([[k * dx - ax, k * dy - ay, k * dz - az, 0.0]])
 
     def jacobian(self, x: Array) -> Array:
         """dg/dx; at the apex the (sub)gradient -axis is used. Shape (1, 4)."""
