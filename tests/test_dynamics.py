@@ -33,10 +33,11 @@ def sim() -> Iterator[tuple[int, dict[str, int]]]:
     cid = p.connect(p.DIRECT)
     ids: dict[str, int] = {}
     with tempfile.TemporaryDirectory() as tmp:
-        for params in (E1, E2):
-            path = Path(tmp) / f"{params.name}.urdf"
-            path.write_text(endobot_urdf(params))
-            ids[params.name] = p.loadURDF(
+        for params, tool in ((E1, True), (E2, True), (E1, False)):
+            key = params.name + ("" if tool else "-no-tool")
+            path = Path(tmp) / f"{key}.urdf"
+            path.write_text(endobot_urdf(params, include_tool=tool))
+            ids[key] = p.loadURDF(
                 str(path),
                 useFixedBase=True,
                 flags=p.URDF_USE_INERTIA_FROM_FILE,
@@ -57,11 +58,13 @@ def test_inverse_dynamics_matches_pybullet(
 ) -> None:
     cid, ids = sim
     p.setGravity(*g, physicsClientId=cid)
-    oracle = p.calculateInverseDynamics(
-        ids[params.name], list(q), list(qd), list(qdd), physicsClientId=cid
-    )
     model = endobot.inverse_dynamics(q, qd, qdd, dataclasses.replace(params, gravity=g))
-    np.testing.assert_allclose(model, oracle, atol=1e-9, rtol=1e-7)
+    keys = [params.name] + ([f"{params.name}-no-tool"] if params is E1 else [])
+    for key in keys:  # with the tool link the insertion body is split in two: same dynamics
+        oracle = p.calculateInverseDynamics(
+            ids[key], list(q), list(qd), list(qdd), physicsClientId=cid
+        )
+        np.testing.assert_allclose(model, oracle, atol=1e-9, rtol=1e-7)
 
 
 def test_thesis_lumped_values_are_the_model_coefficients() -> None:

@@ -158,6 +158,29 @@ def test_static_friction_holds_without_chatter(client: int) -> None:
     np.testing.assert_allclose(sim.last_friction, below, rtol=1e-6)
 
 
+@pytest.fixture(scope="module")
+def rough() -> Iterator[EndoBotSim]:
+    """One E1 with static friction (model c), shared by the stiction property tests."""
+    cid = p.connect(p.DIRECT)
+    p.setGravity(0.0, 0.0, -9.81, physicsClientId=cid)
+    yield EndoBotSim(cid, E1, friction_model="c")
+    p.disconnect(cid)
+
+
+@given(joints, st.tuples(*[st.floats(-0.95, 0.95)] * 4).map(np.array))
+def test_any_load_below_static_friction_is_held(
+    rough: EndoBotSim, q: np.ndarray, k: np.ndarray
+) -> None:
+    """Joints 1 and 3 couple through M; every joint must still stay exactly at rest."""
+    rough.reset(q)
+    load = k * np.array([j.friction.static for j in E1.joints])
+    for _ in range(30):
+        rough.step(endobot.gravity_vector(rough.true_state().q, rough.model_params) + load)
+    state = rough.true_state()
+    np.testing.assert_allclose(state.q, q, atol=1e-9)
+    np.testing.assert_allclose(rough.last_friction, load, atol=1e-9)
+
+
 def test_breakaway_above_static_friction(client: int) -> None:
     sim = EndoBotSim(client, E1, friction_model="d")
     sim.reset([0.0, 0.0, 0.0, 0.1])
