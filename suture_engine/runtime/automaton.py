@@ -487,11 +487,20 @@ class Automaton:
                 return []
             return [self._fire(action, "operator")]
         if action == "resume":
+            if step is not None and step not in self.plan.steps:
+                raise AutomatonError(
+                    f"cannot resume at {step!r}: not a step ({', '.join(self.plan.steps)})",
+                    self.state,
+                    action,
+                )
             target = step or self.interrupted_step or self.step_name or self.plan.initial
+            out: list[TransitionRecord] = []
             if self.mode is Mode.AUTONOMOUS:
-                return []
+                if step is None or step == self.step_name:
+                    return []
+                out = self.unpredictable("operator-interrupt", operator_lock=True)
             self.waiting_for_operator = False
-            return self._enter_step("resume", "operator", target)
+            return out + self._enter_step("resume", "operator", target)
         if action == "abort":
             return [self._fire("abort", "operator")]
         raise AutomatonError(

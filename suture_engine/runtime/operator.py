@@ -152,10 +152,13 @@ class OperatorEvent:
     index: int = -1
 
 
-def _node_at(node: yaml.Node | None, path: Sequence[int | str]) -> yaml.Node | None:
-    for key in path:
+def _node_at(
+    node: yaml.Node | None, path: Sequence[int | str], key_node: bool = False
+) -> yaml.Node | None:
+    for i, key in enumerate(path):
         if isinstance(node, yaml.MappingNode):
-            node = next((v for k, v in node.value if k.value == key), node)
+            last = key_node and i == len(path) - 1
+            node = next((k if last else v for k, v in node.value if k.value == key), node)
             if node is None:
                 return None
         elif isinstance(node, yaml.SequenceNode) and isinstance(key, int):
@@ -193,7 +196,7 @@ def load_operator_file(path: str | Path) -> list[tuple[_Event, OperatorEvent]]:
     except ValidationError as exc:
         err = exc.errors()[0]
         loc = [p for p in err["loc"] if not (isinstance(p, str) and p.startswith("function-"))]
-        node = _node_at(root, loc)
+        node = _node_at(root, loc, key_node=err["type"] == "extra_forbidden")
         mark = node.start_mark if node is not None else None
         dotted = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in loc).lstrip(".")
         raise OperatorFileError(
