@@ -33,7 +33,13 @@ from suture_engine.language.expressions import (
 from suture_engine.language.model import FailurePolicy, ParamSpec, ProcedureDocument, StateDocument
 from suture_engine.language.procedure import LoadedState, Procedure, SourceLocation
 from suture_engine.language.scene import Scene
-from suture_engine.language.source import PathKey, SourceMap, load_yaml_file, load_yaml_text
+from suture_engine.language.source import (
+    PathKey,
+    SourceMap,
+    YamlDocument,
+    load_yaml_file,
+    load_yaml_text,
+)
 from suture_engine.language.units import (
     Quantity,
     UnitError,
@@ -434,7 +440,7 @@ def _load_scene(
         return None
     scene: Scene | None = None
     try:
-        doc = load_yaml_file(target, display)
+        doc = _cached_yaml(target, display)
     except ProblemError as exc:
         ctx.problems.extend(exc.problems)
     else:
@@ -652,7 +658,7 @@ def _load_use(
         add(source.problem("missing-use", f"sub-procedure file {ref!r} not found", here))
         return None
     try:
-        sub = load_yaml_file(target, display)
+        sub = _cached_yaml(target, display)
     except ProblemError as exc:
         ctx.problems.extend(exc.problems)
         return None
@@ -662,6 +668,28 @@ def _load_use(
 
     binding = _Binding(dict(doc.with_), locate)
     return _load_document(ctx, sub.data, sub.source, target, binding, scene, roles, chain)
+
+
+_YAML_CACHE: dict[tuple[Path, str, int, int], YamlDocument] = {}
+
+
+def _cached_yaml(path: Path, display: str) -> YamlDocument:
+    """Sub-procedures and scenes are read once per process while unchanged.
+
+    The cached data is never mutated: resolving expressions builds new containers.
+    """
+    try:
+        stat = path.stat()
+    except OSError:
+        return load_yaml_file(path, display)
+    key = (path.resolve(), display, stat.st_mtime_ns, stat.st_size)
+    doc = _YAML_CACHE.get(key)
+    if doc is None:
+        doc = load_yaml_file(path, display)
+        if len(_YAML_CACHE) > 256:
+            _YAML_CACHE.clear()
+        _YAML_CACHE[key] = doc
+    return doc
 
 
 def _tree_ok(ctx: _Context, target: Path) -> bool:
