@@ -1,0 +1,233 @@
+"""The tick loop: scripted operator scenarios checked in the trace, modes, monitor, timeouts."""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from suture_engine.runtime.automaton import FailurePolicy, Outcome, Plan, StepSpec, Then
+from suture_engine.runtime.interpreter import Interpreter
+from suture_engine.runtime.monitor import Invariant
+from suture_engine.runtime.observation import Observation, RobotObservation
+from suture_engine.runtime.run import run_procedure
+from suture_engine.runtime.testing import IdealBackend, ScriptedSkill
+from suture_engine.trace.reader import TraceReader
+
+HERE = Path(__file__).resolve().parent
+PROCS = HERE / "procedures"
+
+
+def _messages(trace: Path, topic: str) -> list[Any]:
+    return list(TraceReader(trace).messages([topic]))
+
+
+def _transitions(trace: Path) -> list[tuple[float, str, str, str]]:
+    return [
+        (m.log_time_ns / 1e9, m.data["source"], m.data["dest"], m.data["trigger"])
+        for m in _messages(trace, "/transitions")
+    ]
+
+
+def _run(tmp_path: Path, ops: str | None, **kw: Any) -> Any:
+    return run_procedure(
+        PROCS / "steps.yaml",
+        backend="ideal",
+        out=tmp_path / "run",
+        operator_file=PROCS / ops if ops else None,
+        **kw,
+    )
+
+
+def test_scenario_lock_manual_resume_completes(tmp_path: Path) -> None:
+    result = _run(tmp_path, "ops-manual.yaml")
+    assert result.summary.outcome == "succeeded"
+    assert result.summary.operator_events == 4
+    steps = [(src, dst, trig) for _, src, dst, trig in _transitions(result.trace)]
+    assert steps == [
+        ("idle", "autonomous/prepare", "start"),
+        ("autonomous/prepare", "autonomous/prepare~notbe", "fault"),
+        ("autonomous/prepare~notbe", "lock", "lock"),
+        ("lock", "manual", "manual"),
+        ("manual", "autonomous/prepare", "resume"),
+        ("autonomous/prepare", "autonomous/tighten", "advance"),
+        ("autonomous/tighten", "autonomous/release", "advance"),
+        ("autonomous/release", "finished", "advance"),
+    ]
+    ops = [m.data["action"] for m in _messages(result.trace, "/operator")]
+    assert ops == ["lock", "manual", "force", "resume"]
+    # In Manual only gravity is compensated: the surgeon's push moved the arm. In Lock
+    # (before) and after the resume (hold) it stayed put.
+    q = {
+        round(m.log_time_ns / 1e6): np.array(m.data["position"])
+        for m in _messages(result.trace, "/joint_state/endobot_1")
+    }
+    moved_in_manual = np.abs(q[500] - q[250]).max()
+    assert moved_in_manual > 1e-2
+    assert np.abs(q[200] - q[100]).max() < 1e-6
+    assert np.abs(q[1000] - q[700]).max() < 1e-4
+    modes = {
+        round(m.log_time_ns / 1e6): m.data["mode"]
+        for m in _messages(result.trace, "/command/endobot_1")
+    }
+    assert (modes[50], modes[150], modes[300], modes[600]) == (
+        "autonomous",
+        "lock",
+        "manual",
+        "autonomous",
+    )
+
+
+def test_scenario_injected_violation_notbe_retry_success(tmp_path: Path) -> None:
+    result = _run(tmp_path, "ops-snag.yaml")
+    s = result.summary
+    assert s.outcome == "succeeded" and s.retries == 1
+    assert [v["invariant"] for v in s.violations] == ["tension"]
+    assert s.violations[0]["value"] > s.violations[0]["bound"] == 2.0
+    steps = [(src, dst, trig) for _, src, dst, trig in _transitions(result.trace)]
+    assert steps[1:6] == [
+        ("autonomous/prepare", "autonomous/tighten", "advance"),
+        ("autonomous/tighten", "autonomous/tighten~notbe", "fault"),
+        ("autonomous/tighten~notbe", "autonomous/prepare", "retry"),
+        ("autonomous/prepare", "autonomous/tighten", "advance"),
+        ("autonomous/tighten", "autonomous/release", "advance"),
+    ]
+    events = _messages(result.trace, "/events")
+    unpredictable = [e.data for e in events if e.data["kind"] == "unpredictable"]
+    assert len(unpredictable) == 1 and "invariant:tension" in unpredictable[0]["detail"]
+    assert s.max_tension_N == pytest.approx(3.0, abs=1e-9)
+
+
+def test_scenario_unrecoverable_violation_lock_then_operator_abort(tmp_path: Path) -> None:
+    result = _run(tmp_path, "ops-abort.yaml")
+    s = result.summary
+    assert (s.outcome, s.final_state, s.retries) == ("aborted", "ABORTED", 2)
+    steps = [(src, dst) for _, src, dst, _ in _transitions(result.trace)]
+    assert ("autonomous/tighten~notbe", "lock") in steps
+    assert steps[-1] == ("lock", "ABORTED")
+    assert [m.data["action"] for m in _messages(result.trace, "/operator")][-1] == "abort"
+    assert Path(result.summary_path).is_file()
+
+
+def test_no_operator_and_exhausted_policy_stops_locked_as_failed(tmp_path: Path) -> None:
+    plan = Plan(
+        "p",
+        "a",
+        {"a": StepSpec("a", lambda: ScriptedSkill("a", "failure"), "end", FailurePolicy(0))},
+        {"end": Outcome.SUCCEEDED},
+    )
+    be = IdealBackend()
+    it = Interpreter(plan, be, be.reset())
+    s = it.run("p", "ideal")
+    assert (s.outcome, s.final_state) == ("failed", "lock")
+    assert "waiting for an operator" in s.metrics["stopped"]
+
+
+def test_skill_exception_is_an_unpredictable_event_not_a_crash() -> None:
+    plan = Plan(
+        "p",
+        "a",
+        {
+            "a": StepSpec(
+                "a", lambda: ScriptedSkill("a", "raise"), "end", FailurePolicy(0, Then.FAIL)
+            )
+        },
+        {"end": Outcome.SUCCEEDED},
+    )
+    be = IdealBackend()
+    it = Interpreter(plan, be, be.reset())
+    s = it.run("p", "ideal")
+    assert s.outcome == "failed" and s.final_state == "FAILED"
+    reasons = [r.reason for r in it.automaton.history if r.kind == "unpredictable"]
+    assert reasons and "RuntimeError" in reasons[0]
+
+
+def test_timeout_is_an_unpredictable_event() -> None:
+    plan = Plan(
+        "p",
+        "a",
+        {
+            "a": StepSpec(
+                "a",
+                lambda: ScriptedSkill("a", "never"),
+                "end",
+                FailurePolicy(0, Then.ABORT),
+                timeout_s=0.05,
+            )
+        },
+        {"end": Outcome.SUCCEEDED},
+    )
+    be = IdealBackend()
+    it = Interpreter(plan, be, be.reset())
+    s = it.run("p", "ideal")
+    assert s.outcome == "aborted"
+    fault = next(r for r in it.automaton.history if r.event == "fault")
+    assert fault.reason == "timeout"
+    assert s.sim_time_s == pytest.approx(0.05, abs=1.5e-3)
+
+
+def test_workspace_and_singularity_invariants() -> None:
+    from suture_engine.runtime.monitor import Monitor
+
+    obs = Observation(
+        3,
+        0.003,
+        {
+            "r": RobotObservation(
+                np.array([0.0, 1.55, 0.0, 0.1]),
+                np.zeros(4),
+                np.zeros(6),
+                dataclasses.replace(IdealBackend().reset().robots["endobot_1"].tool),
+            )
+        },
+        IdealBackend().geometry(),
+    )
+    m = Monitor()
+    inv = Invariant(singularity_margin_rad=0.05)
+    v = m.check(inv, obs, "s", {"r": 0.0}, {}, {})
+    assert v is not None and v.invariant == "singularity"
+    assert v.value == pytest.approx(np.pi / 2 - 1.55)
+    inv = Invariant(q_max=(1.0, 1.0, 1.0, 1.0))
+    v = m.check(inv, obs, "s", {"r": 0.0}, {}, {})
+    assert v is not None and (v.invariant, v.bound) == ("workspace", 1.0)
+    inv = Invariant(workspace_min=(-1.0, -1.0, -1.0), workspace_max=(1.0, 1.0, 0.0))
+    v = m.check(inv, obs, "s", {"r": 0.0}, {}, {})
+    # tip z = q4 cos(q1) cos(q2) > 0 in the base frame (identity base): outside the box
+    assert v is not None and v.invariant == "workspace"
+    assert m.check(Invariant(max_tension_N=5.0), obs, "s", {"r": 4.9}, {}, {}) is None
+    assert m.check(None, obs, "s", {"r": 9.0}, {}, {"r": True}) is not None  # sensor fault
+
+
+def test_skills_observe_estimated_velocity_and_no_ground_truth() -> None:
+    seen: list[Observation] = []
+
+    class Spy(ScriptedSkill):
+        def step(self, ctx: Any, obs: Any) -> Any:
+            seen.append(obs)
+            return super().step(ctx, obs)
+
+    plan = Plan(
+        "p",
+        "a",
+        {"a": StepSpec("a", lambda: Spy("a", "success", after_s=0.2), "end")},
+        {"end": Outcome.SUCCEEDED},
+    )
+    be = IdealBackend(q0={"endobot_1": (0.0, 0.2, 0.0, 0.12)})
+    it = Interpreter(plan, be, be.reset())
+    be.apply_external_force("endobot_1", (0.0, 0.0, 2.0), 0.1)  # it moves: nonzero velocity
+    it.run("p", "ideal")
+    fields = {f.name for f in dataclasses.fields(Observation)}
+    assert fields == {"tick", "t", "robots", "scene"}
+    robot_fields = {f.name for f in dataclasses.fields(RobotObservation)}
+    assert robot_fields == {"q", "qd", "base_wrench", "tool"}
+    # the velocity is the washout filter's estimate from the encoders, not the simulator's
+    from suture_engine.control.filters import WashoutFilter
+
+    wf = WashoutFilter(150.0, 1e-3)
+    for obs in seen[:120]:
+        est = wf.update(obs.robots["endobot_1"].q)
+        np.testing.assert_allclose(obs.robots["endobot_1"].qd, est, atol=1e-12)
+    assert max(abs(o.robots["endobot_1"].qd).max() for o in seen) > 1e-4
