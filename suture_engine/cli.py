@@ -132,6 +132,42 @@ def graph(
     raise typer.Exit(graph_command(file, fmt=format_, allow_outside=allow_outside))
 
 
+@app.command()
+def identify(
+    robot: Annotated[str, typer.Option(help="E1 or E2: the simulated robot's parameters.")] = "E1",
+    signal: Annotated[
+        str, typer.Option(help="Excitation: schroeder, multisine, chirp or prbs.")
+    ] = "schroeder",
+    method: Annotated[str, typer.Option(help="differential or energy model.")] = "differential",
+    duration: Annotated[float, typer.Option(help="Excitation length per joint [s].")] = 10.0,
+    encoder_noise: Annotated[
+        float, typer.Option(help="Encoder noise standard deviation [rad and m].")
+    ] = 0.0,
+    quantised: Annotated[
+        bool, typer.Option(help="Quantise encoders (2000 counts per motor revolution).")
+    ] = False,
+    seed: Annotated[int, typer.Option(help="Noise seed.")] = 0,
+    joint: Annotated[
+        list[int] | None, typer.Option(help="Joint to identify, 1-4 (repeatable; default all).")
+    ] = None,
+) -> None:
+    """Excite the simulated EndoBot, identify it (thesis 3.5), print estimate vs truth."""
+    from suture_engine.robot.identification_report import identify_command
+
+    raise typer.Exit(
+        identify_command(
+            robot=robot,
+            signal=signal,
+            method=method,
+            duration=duration,
+            encoder_noise=encoder_noise,
+            quantised=quantised,
+            seed=seed,
+            joints=joint,
+        )
+    )
+
+
 def main() -> None:
     """Entry point of the ``suture`` console script."""
     app()

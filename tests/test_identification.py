@@ -133,3 +133,72 @@ def test_rank_deficient_regressor_raises() -> None:
         least_squares(np.column_stack([t, 2 * t]), t)
     with pytest.raises(IdentificationError):
         least_squares(np.ones((2, 3)), np.ones(2))
+
+
+# --- On the simulated robot (PyBullet) --------------------------------------------------
+
+
+@pytest.mark.parametrize("joint", [0, 1, 3])
+def test_single_joint_gravity_shape_matches_robot_model(joint: int) -> None:
+    """The single-joint structure (3.73) against the robot model's own G(q)."""
+    from suture_engine.robot import endobot
+    from suture_engine.robot.identification_experiment import JOINT_PLANS, joint_truth
+    from suture_engine.robot.params import E1
+
+    plan = JOINT_PLANS[joint]
+    truth = joint_truth(E1, joint, plan.hold)
+    for x in np.linspace(-0.8, 0.8, 9):
+        q = np.array(plan.hold, dtype=float)
+        q[joint] = x if joint != 3 else 0.1 + 0.1 * x
+        g_model = endobot.gravity_vector(q, E1)[joint]
+        g_single = truth.gravity_moment * G * plan.shape.shape(np.array([q[joint]]))[0]
+        assert g_single == pytest.approx(g_model, rel=1e-9, abs=1e-12)
+        assert endobot.mass_matrix(q, E1)[joint, joint] == pytest.approx(truth.inertia)
+
+
+def test_pybullet_yaw_joint_recovered_within_5_percent_clean() -> None:
+    from suture_engine.robot.identification_experiment import identify_robot
+
+    report = identify_robot(joints=(0,), duration=4.0)
+    (res,) = report.joints
+    for k in range(4):
+        assert res.estimate[k] == pytest.approx(res.truth[k], rel=0.05), k
+
+
+def test_cli_identify_rejects_bad_options_and_prints_table() -> None:
+    from typer.testing import CliRunner
+
+    from suture_engine.cli import app
+
+    runner = CliRunner()
+    bad = runner.invoke(app, ["identify", "--signal", "white"])
+    assert bad.exit_code == 2
+    assert "unknown signal" in bad.output
+    assert "Traceback" not in bad.output
+    ok = runner.invoke(app, ["identify", "--joint", "3", "--duration", "3", "--method", "energy"])
+    assert ok.exit_code == 0, ok.output
+    assert "E13 roll" in ok.output and "Fv" in ok.output
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("method", ["differential", "energy"])
+def test_pybullet_all_joints_within_5_percent_schroeder_clean(method: str) -> None:
+    from suture_engine.robot.identification_experiment import identify_robot
+
+    report = identify_robot(method=method)
+    for res in report.joints:
+        for k in range(4):
+            if np.isnan(res.truth[k]):
+                continue
+            assert res.estimate[k] == pytest.approx(res.truth[k], rel=0.05), (res.joint, k)
+
+
+@pytest.mark.slow
+def test_pybullet_realistic_encoder_noise_inertia_and_gravity_within_10_percent() -> None:
+    from suture_engine.robot.identification_experiment import identify_robot
+
+    report = identify_robot(encoder_noise=1e-5, quantised=True, method="energy")
+    for res in report.joints:
+        for k in range(2):
+            if not np.isnan(res.truth[k]):
+                assert res.estimate[k] == pytest.approx(res.truth[k], rel=0.10), (res.joint, k)

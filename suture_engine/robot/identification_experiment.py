@@ -154,6 +154,7 @@ class IdentificationReport(NamedTuple):
         method: "differential" or "energy".
         encoder_noise: encoder noise standard deviation [rad, m].
         joints: one result per identified joint.
+        quantised: whether the encoders were quantised.
     """
 
     robot: str
@@ -161,6 +162,7 @@ class IdentificationReport(NamedTuple):
     method: str
     encoder_noise: float
     joints: tuple[JointResult, ...]
+    quantised: bool = False
 
 
 @contextmanager
@@ -413,4 +415,6 @@ def identify_robot(
             else:
                 est = fit_differential(rec.q, rec.tau, DT, pl.shape, cutoff_hz=cutoff)
             results.append(JointResult(j, est, joint_truth(sim.model_params, j, pl.hold), friction))
-    return IdentificationReport(p.name, kind.value, method, encoder_noise, tuple(results))
+    return IdentificationReport(
+        p.name, kind.value, method, encoder_noise, tuple(results), quantised
+    )
