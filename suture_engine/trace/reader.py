@@ -28,7 +28,7 @@ import zlib
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, NamedTuple
+from typing import Any, BinaryIO, NamedTuple
 
 from suture_engine.trace.errors import (
     TraceCorruptError,
@@ -121,10 +121,20 @@ class TraceStatus:
     reason: str
 
 
-class _Raw(NamedTuple):
+class _Loose(NamedTuple):
+    """A message outside any chunk (only in files of other writers)."""
+
     channel_id: int
     log_time_ns: int
     data: bytes
+
+
+class _ChunkRef(NamedTuple):
+    """Where a verified chunk's record body lies in the file."""
+
+    offset: int  # of the record [byte]
+    body_start: int
+    body_length: int
 
 
 class _Truncated(Exception):
@@ -132,7 +142,11 @@ class _Truncated(Exception):
 
 
 class TraceReader:
-    """Reads a trace file eagerly (framing, chunks, CRCs) and decodes messages lazily.
+    """Reads a trace file: checks it at once, decodes messages lazily.
+
+    Opening scans the whole file (record framing, every chunk decompressed and its
+    CRC checked) but keeps only the chunks' positions, so memory does not grow
+    with the trace; :meth:`messages` reads and decodes the chunks again.
 
     Args:
         path: the trace file.
@@ -156,18 +170,18 @@ class TraceReader:
     ) -> None:
         self.path = Path(path)
         self._name = str(self.path)
-        try:
-            data = self.path.read_bytes()
-        except OSError as exc:
-            raise TraceIOError(self._name, f"cannot read trace: {exc.strerror}") from exc
-        self._data = data
         self.profile = ""
         self.library = ""
         self._schemas: dict[int, tuple[str, Mapping[str, Any] | None]] = {}
         self._channels: dict[int, TraceChannel] = {}
-        self._messages: list[_Raw] = []
-        self.status = self._parse(require_engine)
-        del self._data
+        self._segments: list[_ChunkRef | _Loose] = []
+        self._counts: dict[int, int] = {}
+        self._last_ns: int | None = None
+        try:
+            with open(self.path, "rb") as f:
+                self.status = self._parse(f, require_engine)
+        except OSError as exc:
+            raise TraceIOError(self._name, f"cannot read trace: {exc.strerror}") from exc
         if self.status.truncated and not allow_truncated:
             raise TraceTruncatedError(
                 self._name,
@@ -197,35 +211,57 @@ class TraceReader:
     def messages(self, topics: Iterable[str] | None = None) -> Iterator[TraceMessage]:
         """The messages in file order, optionally only on some topics.
 
+        Only the part of the file that was readable when the reader was opened is read.
+
         Args:
             topics: topics or glob patterns (``/joint_state/*``); ``None`` for all.
 
         Raises:
-            TraceCorruptError: a message is not valid JSON.
+            TraceCorruptError: a message is not valid JSON, or the file changed.
+            TraceIOError: the file can no longer be read.
         """
-        wanted: set[int] | None = None
+        channels = self._channels
+        wanted = set(channels)
         if topics is not None:
             patterns = list(topics)
             wanted = {
                 cid
-                for cid, ch in self._channels.items()
+                for cid, ch in channels.items()
                 if any(fnmatch.fnmatchcase(ch.topic, p) for p in patterns)
             }
-        channels = self._channels
-        for raw in self._messages:
-            if wanted is not None and raw.channel_id not in wanted:
-                continue
-            topic = channels[raw.channel_id].topic
-            try:
-                data = json.loads(raw.data)
-            except ValueError as exc:
-                raise TraceCorruptError(
-                    self._name, f"message on {topic} is not JSON: {exc}", -1
-                ) from exc
-            yield TraceMessage(topic, raw.log_time_ns, data)
+        if not wanted or not self._segments:
+            return
+        try:
+            f = open(self.path, "rb")
+        except OSError as exc:
+            raise TraceIOError(self._name, f"cannot read trace: {exc.strerror}") from exc
+        with f:
+            for seg in self._segments:
+                if isinstance(seg, _Loose):
+                    if seg.channel_id in wanted:
+                        yield self._decode(seg.channel_id, seg.log_time_ns, seg.data)
+                    continue
+                try:
+                    f.seek(seg.body_start)
+                    body = f.read(seg.body_length)
+                except OSError as exc:
+                    raise TraceIOError(self._name, f"cannot read trace: {exc.strerror}") from exc
+                if len(body) != seg.body_length:
+                    raise self._corrupt("the file changed while it was read", seg.offset)
+                records = self._chunk_records(memoryview(body), seg.offset)
+                pos, n = 0, len(records)
+                while pos < n:
+                    op, length = _RECORD.unpack_from(records, pos)
+                    start = pos + _RECORD.size
+                    pos = start + length
+                    if op != _OP_MESSAGE:
+                        continue
+                    cid, _seq, log_time, _pub = _MESSAGE.unpack_from(records, start)
+                    if cid in wanted:
+                        yield self._decode(cid, log_time, records[start + _MESSAGE.size : pos])
 
     def __len__(self) -> int:
-        return len(self._messages)
+        return self.status.message_count
 
     def __repr__(self) -> str:
         s = self.status
@@ -234,30 +270,44 @@ class TraceReader:
 
     # -- parsing ----------------------------------------------------------------------------
 
+    def _decode(self, channel_id: int, log_time_ns: int, data: bytes) -> TraceMessage:
+        topic = self._channels[channel_id].topic
+        try:
+            value = json.loads(data)
+        except ValueError as exc:
+            raise TraceCorruptError(self._name, f"message on {topic} is not JSON: {exc}", -1) from (
+                exc
+            )
+        return TraceMessage(topic, log_time_ns, value)
+
     def _corrupt(self, reason: str, offset: int) -> TraceCorruptError:
         return TraceCorruptError(self._name, reason, offset)
 
-    def _parse(self, require_engine: bool) -> TraceStatus:
-        data = self._data
-        size = len(data)
-        if size < len(MAGIC) or data[: len(MAGIC)] != MAGIC:
-            if size < len(MAGIC) and MAGIC.startswith(data):
-                return self._status(False, size, size, "empty file")
+    def _parse(self, f: BinaryIO, require_engine: bool) -> TraceStatus:
+        size = os.fstat(f.fileno()).st_size
+        head = f.read(len(MAGIC))
+        if len(head) < len(MAGIC) or head != MAGIC:
+            if len(head) < len(MAGIC) and MAGIC.startswith(head):
+                return self._status(False, len(head), len(head), "empty file")
             raise TraceForeignError(self._name, "not an MCAP file (bad magic)")
-        has_tail = size >= 2 * len(MAGIC) + 9 and data[-len(MAGIC) :] == MAGIC
-        view = memoryview(data)
+        has_tail = False
+        if size >= 2 * len(MAGIC) + _RECORD.size:
+            f.seek(size - len(MAGIC))
+            has_tail = f.read(len(MAGIC)) == MAGIC
         pos = len(MAGIC)
         saw_header = False
         saw_data_end = False
         saw_footer = False
         reason = "no footer"
         while pos < size:
-            if size - pos < _RECORD.size:
+            f.seek(pos)
+            frame = f.read(_RECORD.size)
+            if len(frame) < _RECORD.size:
                 if has_tail:
                     raise self._corrupt("record header runs past the end", pos)
                 reason = "torn record header"
                 break
-            op, length = _RECORD.unpack_from(data, pos)
+            op, length = _RECORD.unpack(frame)
             if op not in _KNOWN_OPS and op < 0x80:
                 raise self._corrupt(f"unknown record opcode 0x{op:02x}", pos)
             start = pos + _RECORD.size
@@ -270,12 +320,13 @@ class TraceReader:
             if not saw_header:
                 if op != _OP_HEADER:
                     raise self._corrupt("first record is not a header", pos)
-                self._parse_header(view[start:end], pos, require_engine)
+                self._parse_header(memoryview(f.read(length)), pos, require_engine)
                 saw_header = True
             elif op == _OP_CHUNK:
-                self._parse_chunk(view[start:end], pos)
+                self._scan_chunk(memoryview(f.read(length)), pos)
             elif op in (_OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE):
-                self._parse_record(op, view[start:end], pos)
+                if not saw_data_end:  # the summary repeats schemas and channels
+                    self._parse_record(op, memoryview(f.read(length)), pos)
             elif op == _OP_HEADER:
                 raise self._corrupt("second header record", pos)
             elif op == _OP_DATA_END:
@@ -289,7 +340,8 @@ class TraceReader:
             raise self._corrupt("no header record", pos)
         complete = saw_footer and saw_data_end and pos + len(MAGIC) == size and has_tail
         if saw_footer and not complete:
-            if not MAGIC.startswith(data[pos:]):
+            f.seek(pos)
+            if not MAGIC.startswith(f.read(len(MAGIC) + 1)):
                 raise self._corrupt("footer not followed by the closing magic", pos)
             reason = "no closing magic"
         if complete:
@@ -301,13 +353,8 @@ class TraceReader:
         return self._status(complete, pos, size, reason)
 
     def _status(self, complete: bool, pos: int, size: int, reason: str) -> TraceStatus:
-        counts: dict[str, int] = {}
-        last: int | None = None
-        for raw in self._messages:
-            topic = self._channels[raw.channel_id].topic
-            counts[topic] = counts.get(topic, 0) + 1
-            if last is None or raw.log_time_ns > last:
-                last = raw.log_time_ns
+        counts = {self._channels[cid].topic: n for cid, n in self._counts.items()}
+        last = self._last_ns
         return TraceStatus(
             complete=complete,
             truncated=not complete,
@@ -315,7 +362,7 @@ class TraceReader:
             last_time_ns=last,
             stop_offset=pos,
             file_size=size,
-            message_count=len(self._messages),
+            message_count=sum(counts.values()),
             message_counts=counts,
             reason=reason,
         )
@@ -333,7 +380,8 @@ class TraceReader:
                 f"MCAP file written by {library or 'an unknown library'!r}, not by suture-engine",
             )
 
-    def _parse_chunk(self, body: memoryview, offset: int) -> None:
+    def _chunk_records(self, body: memoryview, offset: int) -> bytes:
+        """Decompresses a chunk record's body and checks its size and CRC."""
         try:
             _start, _end, usize, crc = _CHUNK.unpack_from(body, 0)
             compression, p = _string(body, _CHUNK.size)
@@ -360,35 +408,57 @@ class TraceReader:
         except TraceCorruptError:
             raise
         except Exception as exc:  # the decompressors raise their own error types
-            raise self._corrupt(
-                f"chunk does not decompress ({compression}): {exc}", offset
-            ) from exc
+            raise self._corrupt(f"chunk does not decompress ({compression}): {exc}", offset) from (
+                exc
+            )
         if len(records) != usize:
             raise self._corrupt("chunk size differs from its declared size", offset)
         if crc != 0 and zlib.crc32(records) != crc:
             raise self._corrupt("chunk CRC mismatch", offset)
+        return records
+
+    def _scan_chunk(self, body: memoryview, offset: int) -> None:
+        """Checks a chunk and its records; notes its schemas, channels and messages."""
+        records = self._chunk_records(body, offset)
         view = memoryview(records)
-        pos = 0
-        while pos < len(records):
-            if len(records) - pos < _RECORD.size:
+        counts, channels = self._counts, self._channels
+        last = self._last_ns
+        pos, n = 0, len(records)
+        while pos < n:
+            if n - pos < _RECORD.size:
                 raise self._corrupt("torn record inside a chunk", offset)
             op, length = _RECORD.unpack_from(records, pos)
-            end = pos + _RECORD.size + length
-            if end > len(records):
+            start = pos + _RECORD.size
+            end = start + length
+            if end > n:
                 raise self._corrupt("record runs past the end of its chunk", offset)
-            if op in (_OP_SCHEMA, _OP_CHANNEL, _OP_MESSAGE):
-                self._parse_record(op, view[pos + _RECORD.size : end], offset)
+            if op == _OP_MESSAGE:
+                if length < _MESSAGE.size:
+                    raise self._corrupt("message record too short", offset)
+                cid, _seq, log_time, _pub = _MESSAGE.unpack_from(records, start)
+                if cid not in channels:
+                    raise self._corrupt(f"message on undeclared channel {cid}", offset)
+                counts[cid] = counts.get(cid, 0) + 1
+                if last is None or log_time > last:
+                    last = log_time
+            elif op in (_OP_SCHEMA, _OP_CHANNEL):
+                self._parse_record(op, view[start:end], offset)
             elif op not in _KNOWN_OPS and op < 0x80:
                 raise self._corrupt(f"unknown record opcode 0x{op:02x} in a chunk", offset)
             pos = end
+        self._last_ns = last
+        self._segments.append(_ChunkRef(offset, offset + _RECORD.size, len(body)))
 
     def _parse_record(self, op: int, body: memoryview, offset: int) -> None:
         try:
             if op == _OP_MESSAGE:
-                channel_id, _seq, log_time, _pub = _MESSAGE.unpack_from(body, 0)
-                if channel_id not in self._channels:
-                    raise self._corrupt(f"message on undeclared channel {channel_id}", offset)
-                self._messages.append(_Raw(channel_id, log_time, bytes(body[_MESSAGE.size :])))
+                cid, _seq, log_time, _pub = _MESSAGE.unpack_from(body, 0)
+                if cid not in self._channels:
+                    raise self._corrupt(f"message on undeclared channel {cid}", offset)
+                self._segments.append(_Loose(cid, log_time, bytes(body[_MESSAGE.size :])))
+                self._counts[cid] = self._counts.get(cid, 0) + 1
+                if self._last_ns is None or log_time > self._last_ns:
+                    self._last_ns = log_time
             elif op == _OP_SCHEMA:
                 (sid,) = _U16.unpack_from(body, 0)
                 name, p = _string(body, 2)
