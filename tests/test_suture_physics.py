@@ -169,20 +169,22 @@ def test_stitcher_passes_needle_to_other_jaw() -> None:
         scene.close()
 
 
-@pytest.mark.xfail(
-    reason="known defect: the thread does not slide through the channel yet", strict=True
-)
-def test_tissue_channel_friction_resists_pulling_with_4_5() -> None:
+@pytest.mark.parametrize("f_static", [0.3, pytest.param(0.6, marks=pytest.mark.slow)])
+def test_tissue_channel_friction_resists_pulling_with_4_5(f_static: float) -> None:
     """Drag a threaded suture through the channel at constant speed: the extra grip force over
     the same drag without tissue friction is F_s + F_v v (4.5)."""
     speed = 0.01
-    free = _drag_through(0.0, 0.0, speed)
-    loaded = _drag_through(0.3, 5.0, speed)
-    assert loaded - free == pytest.approx(0.3 + 5.0 * speed, rel=0.2)
+    free, _ = _drag_through(0.0, 0.0, speed)
+    loaded, reported = _drag_through(f_static, 2.0, speed)
+    expected = f_static + 2.0 * speed
+    assert loaded - free == pytest.approx(expected, abs=0.07)
+    # The tissue's own account of the friction it applied agrees (it opposes sliding).
+    assert -reported == pytest.approx(expected, abs=0.07)
 
 
-def _drag_through(f_static: float, f_viscous: float, speed: float) -> float:
-    """Mean grip force [N] dragging a thread laid through the channel at ``speed`` [m/s]."""
+def _drag_through(f_static: float, f_viscous: float, speed: float) -> tuple[float, float]:
+    """Mean grip force and mean reported channel friction [N] dragging a thread laid through
+    the channel at ``speed`` [m/s]."""
     import pybullet as p
 
     from backends.pybullet.suture import Suture, configure_physics
@@ -199,15 +201,22 @@ def _drag_through(f_static: float, f_viscous: float, speed: float) -> float:
             depth=0.005,
             f_static=f_static,
             f_viscous=f_viscous,
+            size=(0.12, 0.04, 0.01),
         )
-        path = np.vstack([[-0.2, 0.0, 0.0], tissue.channel, [0.2, 0.0, 0.0]])
+        # A frictionless pad surface, so the grip feels only the channel's friction.
+        for body in tissue.bodies:
+            p.changeDynamics(body, -1, lateralFriction=0.0, physicsClientId=c)
+        h = 0.0015  # the tails lie just above the surface
+        path = np.vstack(
+            [[-0.2, 0.0, h], [-0.016, 0.0, h], tissue.channel, [0.016, 0.0, h], [0.2, 0.0, h]]
+        )
         sut = Suture.create(c, path, SutureParams(needle=False))
         tissue.thread(sut)
         end = sut.centerline()[-1]
         grasper = Grasper.create(c, "g", (end[0], end[1], end[2]), suture=sut, hook=False)
         grasper.close()
-        forces = []
-        for k in range(2000):
+        forces, friction, inside = [], [], []
+        for k in range(3000):
             if k > 200:
                 x = end[0] + speed * (k - 200) / 1000
                 grasper.set_pose((x, end[1], end[2]))
@@ -217,11 +226,12 @@ def _drag_through(f_static: float, f_viscous: float, speed: float) -> float:
             p.stepSimulation(physicsClientId=c)
             if k > 1000:
                 forces.append(grasper.grip_force())
-        assert len(tissue.inside) > 0
-        assert tissue.last_sliding_speed == pytest.approx(speed, rel=0.2)
+                friction.append(tissue.last_friction)
+                inside.append(len(tissue.inside))
+        assert grasper.holding and min(inside) > 0
     finally:
         p.disconnect(physicsClientId=c)
-    return float(np.mean(forces))
+    return float(np.mean(forces)), float(np.mean(friction))
 
 
 def test_suture_params_are_validated() -> None:

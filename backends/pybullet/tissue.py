@@ -14,20 +14,23 @@ within ``capture`` [m] of it
 * is pulled onto the channel by a lateral spring-damper (``k_lateral`` [N/m],
   ``c_lateral`` [N*s/m]), so the thread slides along the channel but cannot leave it
   sideways,
-* feels the suture-tissue friction along the channel (4.5),
+* feels the suture-tissue friction (4.5), f = -(F_s sgn(l_dot) + F_v l_dot), where
+  ``l_dot`` [m/s] is the thread's sliding speed along the channel, shared equally by the
+  capsules inside:
 
-    f_friction = -(F_s sgn(l_dot) + F_v l_dot),
-
-  where ``l_dot`` [m/s] is the thread's mean sliding speed along the channel, shared
-  equally by the capsules inside. ``sgn`` is smoothed as ``tanh(l_dot / v_eps)`` so the
-  static term does not chatter at rest.
+  - the static (Coulomb) part F_s is solved *implicitly*: each capsule inside is held by a
+    point-to-point constraint to the world, re-anchored at the capsule's position every
+    step, whose force is capped at F_s / n. It stops the capsule (stiction) unless the
+    pull exceeds the cap and then resists with exactly the cap. An explicit
+    ``F_s sgn(l_dot)`` force chatters at 1 kHz on mass-scaled capsules;
+  - the viscous part F_v l_dot is an explicit force, its per-capsule coefficient
+    capped at half of mass / time step for stability.
 
 Call :meth:`Tissue.pre_step` before every physics step.
 """
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
@@ -63,19 +66,18 @@ class TissueError(SutureError):
         self.reason = reason
 
 
-def channel_friction(l_dot: float, f_static: float, f_viscous: float, v_eps: float) -> float:
+def channel_friction(l_dot: float, f_static: float, f_viscous: float) -> float:
     """Suture-tissue friction force along the channel (4.5) [N].
 
     Args:
         l_dot: sliding speed of the thread along the channel [m/s].
         f_static: static (Coulomb) friction F_s [N].
         f_viscous: viscous coefficient F_v [N*s/m].
-        v_eps: smoothing speed of the sign function [m/s].
 
     Returns:
         The force opposing the sliding, -(F_s sgn(l_dot) + F_v l_dot).
     """
-    return -(f_static * math.tanh(l_dot / v_eps) + f_viscous * l_dot)
+    return -(f_static * float(np.sign(l_dot)) + f_viscous * l_dot)
 
 
 @dataclass
@@ -99,16 +101,17 @@ class Tissue:
     exit: Vec3
     normal: Vec3
     depth: float
-    f_static: float = 0.2
+    f_static: float = 0.3
     f_viscous: float = 2.0
-    v_eps: float = 1e-3
     k_lateral: float = 200.0
-    c_lateral: float = 2.0
+    c_lateral: float = 0.2
     capture: float = 3e-3
     bodies: list[int] = field(default_factory=list)
     channel: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
     suture: Suture | None = None
     inside: list[int] = field(default_factory=list)
+    _passing: set[int] = field(default_factory=set)
+    _anchors: dict[int, int] = field(default_factory=dict)
     last_friction: float = 0.0
     last_sliding_speed: float = 0.0
 
@@ -136,7 +139,7 @@ class Tissue:
             depth: channel depth at mid-span [m].
             size: pad length along entry->exit, width along the wound, thickness [m].
             wound_gap: width of the wound between the two halves [m].
-            **kwargs: ``f_static`` [N], ``f_viscous`` [N*s/m], ``v_eps`` [m/s],
+            **kwargs: ``f_static`` [N], ``f_viscous`` [N*s/m],
                 ``k_lateral`` [N/m], ``c_lateral`` [N*s/m], ``capture`` [m].
 
         Raises:
@@ -216,11 +219,24 @@ class Tissue:
         q, tangent, s = self._project(pos)
         dist = np.linalg.norm(q - pos, axis=1)
         inside = [i for i in range(len(pos)) if 0.0 < s[i] < 1.0 and dist[i] < self.capture]
-        for i in set(inside) ^ set(self.inside):
-            enable = 0 if i in inside else 1
+        # Capsules in the channel or crossing the surface at its ends pass through the pad.
+        hole = self.capture + sut.params.segment_length / 2
+        passing = {i for i in range(len(pos)) if dist[i] < hole}
+        for i in passing ^ self._passing:
+            enable = 0 if i in passing else 1
             for tb in self.bodies:
                 p.setCollisionFilterPair(sut.bodies[i], tb, -1, -1, enable, physicsClientId=c)
+        self._passing = passing
         self.inside = inside
+        # Friction the anchors applied in the last step, along the channel (4.5, static part).
+        static = 0.0
+        for i, cons in list(self._anchors.items()):
+            force = np.asarray(p.getConstraintState(cons, physicsClientId=c)[:3])
+            if i in inside:
+                static -= float(force @ tangent[i])
+            else:
+                p.removeConstraint(cons, physicsClientId=c)
+                del self._anchors[i]
         if not inside:
             self.last_friction = self.last_sliding_speed = 0.0
             return
@@ -228,14 +244,35 @@ class Tissue:
         tan = tangent[inside]
         axial = np.einsum("ij,ij->i", vel, tan)
         l_dot = float(axial.mean())
-        friction = channel_friction(l_dot, self.f_static, self.f_viscous, self.v_eps)
-        self.last_friction, self.last_sliding_speed = friction, l_dot
-        share = friction / len(inside)
+        mass = sut.params.segment_mass
+        dt = float(p.getPhysicsEngineParameters(physicsClientId=c)["fixedTimeStep"])
+        c_visc = min(self.f_viscous / len(inside), 0.5 * mass / dt)
+        c_lat = min(self.c_lateral, 0.5 * mass / dt)
+        cap = self.f_static / len(inside)
+        self.last_sliding_speed = l_dot
+        self.last_friction = static - c_visc * len(inside) * l_dot
         for row, i in enumerate(inside):
+            anchor = self._anchors.get(i)
+            if anchor is None:
+                anchor = p.createConstraint(
+                    sut.bodies[i],
+                    -1,
+                    -1,
+                    -1,
+                    p.JOINT_POINT2POINT,
+                    [0, 0, 0],
+                    [0, 0, 0],
+                    pos[i].tolist(),
+                    physicsClientId=c,
+                )
+                self._anchors[i] = anchor
+            p.changeConstraint(
+                anchor, jointChildPivot=pos[i].tolist(), maxForce=cap, physicsClientId=c
+            )
             err = pos[i] - q[i]
             err -= tan[row] * float(err @ tan[row])
             v_perp = vel[row] - tan[row] * axial[row]
-            force = -self.k_lateral * err - self.c_lateral * v_perp + share * tan[row]
+            force = -self.k_lateral * err - c_lat * v_perp - c_visc * axial[row] * tan[row]
             p.applyExternalForce(
                 sut.bodies[i],
                 -1,
