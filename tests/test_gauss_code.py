@@ -184,9 +184,7 @@ braid_words = st.integers(min_value=2, max_value=4).flatmap(
     lambda k: st.tuples(
         st.just(k),
         st.lists(
-            st.integers(min_value=1, max_value=k - 1).flatmap(
-                lambda g: st.sampled_from((g, -g))
-            ),
+            st.integers(min_value=1, max_value=k - 1).flatmap(lambda g: st.sampled_from((g, -g))),
             min_size=2,
             max_size=10,
         ),

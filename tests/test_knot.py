@@ -99,8 +99,14 @@ def test_beta_min_minimises_the_bridge_tension(gamma: float, beta_min: float) ->
     t = math.tan(beta_min)
     h_crit = 0.005 * t / (1 - 2 * mu * t)
     traj = placement_trajectory(
-        [-0.005, 0, 0], [0.005, 0, 0], [0, 0, 0.005 * math.tan(gamma)], [0, 0, 1],
-        rate=1e-3, mu=mu, lengths=(0.03, 0.03), beta_min=beta_min,
+        [-0.005, 0, 0],
+        [0.005, 0, 0],
+        [0, 0, 0.005 * math.tan(gamma)],
+        [0, 0, 1],
+        rate=1e-3,
+        mu=mu,
+        lengths=(0.03, 0.03),
+        beta_min=beta_min,
         seat_height=max(1e-4, 1.05 * h_crit),
     )
     assert np.all(traj.beta == beta_min)
@@ -191,8 +197,15 @@ def test_steep_pull_sticks_near_the_tissue() -> None:
 
 def test_placement_rejects_bad_geometry() -> None:
     with pytest.raises(ValueError):
-        placement_trajectory(PA, PB, 0.5 * (PA + PB) - 0.001 * NORMAL, NORMAL, rate=0.01, mu=0.3,
-                             lengths=(0.02, 0.02))
+        placement_trajectory(
+            PA,
+            PB,
+            0.5 * (PA + PB) - 0.001 * NORMAL,
+            NORMAL,
+            rate=0.01,
+            mu=0.3,
+            lengths=(0.02, 0.02),
+        )
     with pytest.raises(ValueError):
         placement_trajectory(PA, PB, KNOT0, NORMAL, rate=0.0, mu=0.3, lengths=(0.02, 0.02))
 

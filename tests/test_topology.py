@@ -145,14 +145,20 @@ def test_crossing_signs_follow_the_right_hand_rule() -> None:
     # 90 deg gives +y, so the crossing is positive. Joined into a closed
     # polygon far away (the far edges add no crossing).
     closed = np.array(
-        [[-1.0, 0.0, 1.0], [1.0, 0.0, 1.0], [3.0, -3.0, 0.5], [0.0, -1.0, 0.0], [0.0, 1.0, 0.0],
-         [-3.0, 3.0, 0.5]]
+        [
+            [-1.0, 0.0, 1.0],
+            [1.0, 0.0, 1.0],
+            [3.0, -3.0, 0.5],
+            [0.0, -1.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [-3.0, 3.0, 0.5],
+        ]
     )
-    code, crossings = project_gauss_code(closed, [0.0, 0.0, 1.0])
+    _, crossings = project_gauss_code(closed, [0.0, 0.0, 1.0])
     assert len(crossings) == 1
     assert crossings[0].sign == 1
     assert crossings[0].point == pytest.approx((0.0, 0.0, 0.5))
-    code2, crossings2 = project_gauss_code(closed * np.array([1.0, 1.0, -1.0]), [0.0, 0.0, 1.0])
+    _, crossings2 = project_gauss_code(closed * np.array([1.0, 1.0, -1.0]), [0.0, 0.0, 1.0])
     assert crossings2[0].sign == -1
 
 
@@ -188,8 +194,13 @@ def test_other_knots_are_other() -> None:
 
 @pytest.mark.parametrize(
     "bad",
-    [np.zeros((5, 2)), np.zeros(3), np.array([[0.0, 0.0, np.nan], [1.0, 0.0, 0.0]]),
-     np.zeros((1, 3)), [["a", "b", "c"]]],
+    [
+        np.zeros((5, 2)),
+        np.zeros(3),
+        np.array([[0.0, 0.0, np.nan], [1.0, 0.0, 0.0]]),
+        np.zeros((1, 3)),
+        [["a", "b", "c"]],
+    ],
 )
 def test_bad_input_is_a_typed_error(bad: object) -> None:
     with pytest.raises(InvalidCenterline):

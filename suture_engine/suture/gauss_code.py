@@ -151,7 +151,9 @@ class GaussCode:
             InvalidGaussCode: a bad generator, or the closure is a link.
         """
         if any(g == 0 or abs(g) >= strands for g in word):
-            raise InvalidGaussCode(f"braid word {list(word)} has a generator outside 1..{strands - 1}")
+            raise InvalidGaussCode(
+                f"braid word {list(word)} has a generator outside 1..{strands - 1}"
+            )
         passages: list[Passage] = []
         strand, visited = 0, set()
         while strand not in visited:

@@ -19,6 +19,7 @@ v3 +-2.
 
 from __future__ import annotations
 
+import itertools
 from collections import Counter
 from dataclasses import dataclass
 from typing import Literal
@@ -239,8 +240,8 @@ def close_curve(
         mid = np.cross(u_end, helper)
         mid /= np.linalg.norm(mid)
         dirs = [u_end, mid, u_start]
-        arc = []
-        for a, b in zip(dirs[:-1], dirs[1:], strict=True):
+        arc: list[NDArray[np.float64]] = []
+        for a, b in itertools.pairwise(dirs):
             arc.extend(_slerp(a, b, arc_points // 2)[:-1])
         arc.append(u_start)
         arc_dirs = np.array(arc)
@@ -372,7 +373,8 @@ def project_gauss_code(
         for k in range(len(signs))
     )
     events = sorted(
-        [(c.over, c.label, True) for c in crossings] + [(c.under, c.label, False) for c in crossings]
+        [(c.over, c.label, True) for c in crossings]
+        + [(c.under, c.label, False) for c in crossings]
     )
     params = [e[0] for e in events]
     if len(params) > 1 and np.min(np.diff(params)) < eps:
