@@ -181,6 +181,35 @@ def test_any_load_below_static_friction_is_held(
     np.testing.assert_allclose(rough.last_friction, load, atol=1e-9)
 
 
+@pytest.mark.parametrize("model", ["b", "c"])
+def test_static_friction_holds_against_a_steady_push_on_the_tool(client: int, model: str) -> None:
+    """A push below the friction level must not make the joints creep; the estimated
+    unmodelled torque equals Jᵀ F (oracle: the geometric Jacobian and the force)."""
+    sim = EndoBotSim(client, E1, friction_model=model)
+    q0 = np.array([0.2, -0.1, 0.3, 0.1])
+    sim.reset(q0)
+    force_world = np.array([0.3, 0.2, 0.0])  # [N]
+    for _ in range(2000):
+        sim.apply(endobot.gravity_vector(sim.true_state().q, sim.model_params))
+        pos, _ = sim.true_tool_pose()
+        p.applyExternalForce(
+            sim.body_id,
+            sim.tool_link,
+            force_world.tolist(),
+            pos.tolist(),
+            p.WORLD_FRAME,
+            physicsClientId=client,
+        )
+        p.stepSimulation(physicsClientId=client)
+    q = sim.true_state().q
+    # one step of motion before the push is known (~1e-6), then no creep at all
+    np.testing.assert_allclose(q, q0, atol=2e-6)
+    force_base = _rot((1.0, 0.0, 0.0, 0.0)).T @ force_world  # EndoBotSim's default base
+    expected = endobot.geometric_jacobian(q)[:3].T @ force_base
+    np.testing.assert_allclose(sim.external_torque, expected, atol=1e-7)
+    np.testing.assert_allclose(sim.last_friction, expected, atol=1e-7)
+
+
 def test_breakaway_above_static_friction(client: int) -> None:
     sim = EndoBotSim(client, E1, friction_model="d")
     sim.reset([0.0, 0.0, 0.0, 0.1])

@@ -14,8 +14,10 @@ friction opposing it and viscous friction evaluated implicitly at the end of
 the step (stable for any Fv; the roll joint has h Fv / I ≈ 1.4). Joints are
 coupled through M⁻¹, so the per-joint solves are repeated (projected
 Gauss-Seidel). F_break is Fs at rest for the static models c and d, else Fc.
-External contact forces are not in the prediction; a joint held by static
-friction may creep under them.
+Forces the model does not know (contacts, pushes on the tool, joint-limit
+constraints) enter the prediction as a one-step-delayed estimate,
+M (q̇ - q̇_predicted) / h from the previous step, so that a joint held by static
+friction stays held under a steady external load instead of creeping.
 
 The base is mounted on a fixed joint that carries PyBullet's joint
 force/torque sensor: the base wrench sensor of chapter 7. Measured outputs are
@@ -241,6 +243,12 @@ class EndoBotSim:
             qd: velocities [rad/s, rad/s, rad/s, m/s].
         """
         vel = [0.0] * 4 if qd is None else [float(v) for v in qd]
+        self._predicted: list[float] | None = None  # a teleport voids the prediction
+        self._last_state: tuple[list[float], list[float]] = ([], [])
+        self._last_mass: list[list[float]] = []
+        self.external_torque = np.zeros(4)
+        """Estimated unmodelled joint torques of the last step [N*m, ..., N] (contacts,
+        pushes, limits), used by the friction solve."""
         for k, j in enumerate(self.joint_indices):
             self._p.resetJointState(
                 self.body_id, j, float(q[k]), vel[k], physicsClientId=self.client
@@ -279,6 +287,10 @@ class EndoBotSim:
 
         Returns:
             τ_f, opposing motion (subtracted from the applied torque).
+
+        Note:
+            Stateful: it also updates the estimate of unmodelled torques from the
+            previous step, so call it once per simulation step (``apply`` does).
         """
         th = self._theta
         rest = (
@@ -289,6 +301,19 @@ class EndoBotSim:
         dt = self.dt
         wl = [[dt * x for x in row] for row in dynamics.mass_matrix_inverse(q, th)]
         qdl = [float(v) for v in qd]
+        ql = [float(v) for v in q]
+        if self._predicted is not None and (ql, qdl) != self._last_state:
+            # the last step's unmodelled generalised force: the estimate it already
+            # contained plus M (q̇ - q̇_pred) / h (an unchanged state means no step ran)
+            dv = [a - b for a, b in zip(qdl, self._predicted, strict=True)]
+            m_prev = self._last_mass
+            self.external_torque = self.external_torque + np.array(
+                [sum(m_prev[i][j] * dv[j] for j in range(4)) / dt for i in range(4)]
+            )
+        self._last_state = (ql, qdl)
+        self._last_mass = dynamics.mass_matrix(q, th).tolist()
+        ext = self.external_torque.tolist()
+        rest = [r + e for r, e in zip(rest, ext, strict=True)]
         vf = [qdl[i] + sum(wl[i][j] * rest[j] for j in range(4)) for i in range(4)]
         static = self.friction_model in (FrictionModel.STATIC, FrictionModel.STRIBECK)
         stribeck = self.friction_model is FrictionModel.STRIBECK
@@ -313,6 +338,7 @@ class EndoBotSim:
                     s = 1.0 if v_other > 0.0 else -1.0
                     v = (v_other - wii * slide[i] * s) / (1.0 + wii * self._fv[i])
                     tf[i] = slide[i] * s + self._fv[i] * v
+        self._predicted = [vf[i] - sum(wl[i][j] * tf[j] for j in range(4)) for i in range(4)]
         return np.array(tf)
 
     def apply(self, tau: Vec) -> None:
