@@ -12,7 +12,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
 from pydantic import Field
 
-from skills.base import Skill, SkillNotAvailable, SkillParams
+from skills.base import Skill, SkillParams
 from suture_engine.language.refs import PointRef, RoleRef
 from suture_engine.language.units import Angle, Duration, Force, Length, Position, Speed
 
@@ -85,6 +85,263 @@ class MoveConstrained(Skill):
             )
         return problems
 
+    STIFFNESS: ClassVar[float] = 1000.0
+    """Virtual spring of shared mode, Kp [N/m] (Table 6.2's desired stiffness)."""
+    DAMPING: ClassVar[float] = 30.0
+    """Virtual damper of shared mode, Kv [N*s/m]."""
+    TOLERANCE: ClassVar[float] = 0.5e-3
+    """Arrival tolerance of the tool tip in autonomous mode [m]."""
+    SETTLE_S: ClassVar[float] = 1.0
+    """Time allowed after the reference's end to reach the tolerance [s], extended by
+    the time the extension-rate bound (4.11) was active."""
+    MAX_QP_FAILURES: ClassVar[int] = 10
+    """Consecutive unsolved ticks (command held) after which the skill fails."""
+    SUTURE_STATIC_FRICTION: ClassVar[float] = 0.3
+    """Default suture-tissue static friction F_s [N] for (4.11) when the procedure's
+    params give no ``suture_static_friction``. An assumption: the thesis gives no value."""
+    SUTURE_VISCOUS_COEFFICIENT: ClassVar[float] = 100.0
+    """Default suture-tissue viscous coefficient F_v [N*s/m] for (4.11) when the
+    params give no ``suture_viscous_coefficient``. An assumption: the thesis gives none."""
+
+    def __init__(self, params: SkillParams) -> None:
+        super().__init__(params)
+        self._robot = ""
+        self._fixture: Any = None
+        self._qp: Any = None
+        self._base: Any = None
+        self._gravity_params: Any = None
+        self._t0 = 0.0
+        self._q_ref: Any = None
+        self._f0: Any = None
+        self._f_goal: Any = None
+        self._x_goal: Any = None
+        self._duration = 0.0
+        self._throttled = 0.0
+        self._exit_base: Any = None
+        self._ldot_max: float | None = None
+        self._peak_e: Any = None
+        self._peak_f: Any = None
+        self.last_qp: Any = None
+        """The last tick's :class:`~suture_engine.control.constrained_qp.QPResult` (traces)."""
+
+    def _build_fixture(self) -> Any:
+        import numpy as np
+
+        from suture_engine.control.fixtures import Circle, Cone, Line, Plane
+
+        p = self.params
+        assert isinstance(p, MoveConstrainedParams)
+        point = np.array(p.point, dtype=float)
+        direction = np.array(p.direction, dtype=float)
+        if p.fixture == "line":
+            return Line(point=point, direction=direction)
+        if p.fixture == "circle":
+            return Circle(center=point, radius=float(p.radius or 0.0), normal=direction)
+        if p.fixture == "plane":
+            return Plane(point=point, normal=direction)
+        return Cone(apex=point, axis=direction, half_angle=float(p.half_angle or 0.0))
+
+    def start(self, ctx: Any) -> None:
+        """Build the fixture and, in autonomous mode, the persistent QP and the reference.
+
+        Args:
+            ctx: the :class:`suture_engine.runtime.context.SkillContext`.
+
+        Raises:
+            FixtureError: the fixture geometry is degenerate.
+            KeyError: an unknown tissue point or role.
+        """
+        import dataclasses
+
+        import numpy as np
+
+        from suture_engine.control.constrained_qp import ConstrainedQP, extension_rate_bound
+        from suture_engine.control.shared import task_vector
+        from suture_engine.robot.params import E1
+        from suture_engine.runtime.trajectory import world_to_base
+
+        p = self.params
+        assert isinstance(p, MoveConstrainedParams)
+        self._robot = ctx.robot(p.robot)
+        self._base = ctx.base_poses.get(self._robot)
+        self._fixture = self._build_fixture()
+        self._t0 = ctx.t0
+        q0 = np.array(ctx.start.robots[self._robot].q, dtype=float)
+        # Gravity in the base frame, R_base^T g_world; without a pose, E1's own mounting.
+        self._gravity_params = E1
+        if self._base is not None:
+            rot = np.asarray(self._base[1], dtype=float).reshape(3, 3)
+            g_base = rot.T @ np.array([0.0, 0.0, -9.81])
+            gravity = (float(g_base[0]), float(g_base[1]), float(g_base[2]))
+            self._gravity_params = dataclasses.replace(E1, gravity=gravity)
+        self._peak_e = np.zeros(self._fixture.rows)
+        self._peak_f = np.zeros(self._fixture.rows)
+        if p.mode == "shared":
+            return
+        has_rate = p.max_tension is not None
+        self._qp = ConstrainedQP([self._fixture], extension_rate=has_rate)
+        if has_rate:
+            fs = float(ctx.params.get("suture_static_friction", self.SUTURE_STATIC_FRICTION))
+            fv = float(
+                ctx.params.get("suture_viscous_coefficient", self.SUTURE_VISCOUS_COEFFICIENT)
+            )
+            self._ldot_max = extension_rate_bound(float(p.max_tension or 0.0), fs, fv)
+            exit_world = ctx.start.scene.exit_point
+            self._exit_base = world_to_base(exit_world, self._base)
+        self._q_ref = q0.copy()
+        x0 = task_vector(q0)
+        target = self._target_world(ctx)
+        goal = np.r_[world_to_base(np.asarray(target), self._base), x0[3]]
+        fx = self._fixture
+        if fx.kind == "eq":
+            self._x_goal = fx.project(goal)
+            self._f0 = fx.free(x0)
+            f_goal = fx.free(self._x_goal)
+            if p.fixture == "circle":  # the shorter way round (6.49)
+                f_goal[0] = self._f0[0] + (f_goal[0] - self._f0[0] + np.pi) % (2 * np.pi) - np.pi
+            self._f_goal = f_goal
+        else:
+            self._x_goal = goal
+        self._duration = max(0.1, 1.5 * float(np.linalg.norm(self._x_goal[:3] - x0[:3])) / p.speed)
+
+    def _target_world(self, ctx: Any) -> tuple[float, float, float]:
+        p = self.params
+        assert isinstance(p, MoveConstrainedParams)
+        if p.target is None:
+            raise KeyError("autonomous move-constrained needs a target")
+        if isinstance(p.target, str):
+            points = ctx.scene.tissue.points if ctx.scene is not None else {}
+            if p.target not in points:
+                raise KeyError(f"no tissue point named {p.target!r}; known: {sorted(points)}")
+            pt = points[p.target]
+            return (float(pt[0]), float(pt[1]), float(pt[2]))
+        return (float(p.target[0]), float(p.target[1]), float(p.target[2]))
+
+    def _reference(self, t: float) -> tuple[Any, Any]:
+        """Task reference and its velocity at time t [s] since start (smoothstep in f)."""
+        import numpy as np
+
+        def at(tt: float) -> Any:
+            s = min(max(tt / self._duration, 0.0), 1.0)
+            sigma = s * s * (3.0 - 2.0 * s)
+            if self._fixture.kind == "eq":
+                f = self._f0 + sigma * (self._f_goal - self._f0)
+                return self._fixture.inverse(np.zeros(self._fixture.rows), f)
+            return self._x_goal
+
+        h = 1e-3
+        x = at(t)
+        return x, (at(t + h) - x) / h
+
     def step(self, ctx: Any, obs: Any) -> Any:
-        """Not available yet: running arrives with the runtime work."""
-        raise SkillNotAvailable(self.name)
+        """One tick: the QP's joint velocities (autonomous) or the shared-control torques.
+
+        Autonomous: the persistent QP (:class:`~suture_engine.control.constrained_qp.
+        ConstrainedQP`) is evaluated at the skill's joint reference, which integrates its
+        solutions, and the reference is sent as a position set point with the velocity
+        feed-forward. Shared: task-space shared control (6.24) with Kp = ``STIFFNESS``
+        and Kv = ``DAMPING`` plus gravity compensation, as joint torques.
+
+        Args:
+            ctx: the skill context.
+            obs: this tick's :class:`suture_engine.runtime.observation.Observation`.
+
+        Returns:
+            A :class:`suture_engine.runtime.observation.StepResult`.
+        """
+        import numpy as np
+
+        from suture_engine.control.shared import (
+            TaskSpaceGains,
+            task_space_shared_control,
+            task_vector,
+        )
+        from suture_engine.robot import endobot
+        from suture_engine.runtime.observation import (
+            Command,
+            RobotCommand,
+            SkillStatus,
+            StepResult,
+        )
+
+        p = self.params
+        assert isinstance(p, MoveConstrainedParams)
+        ro = obs.robots[self._robot]
+        t = obs.t - self._t0
+        if p.mode == "shared":
+            grav = endobot.gravity_vector(ro.q, self._gravity_params)
+            out = task_space_shared_control(
+                self._fixture,
+                ro.q,
+                ro.qd,
+                TaskSpaceGains(self.STIFFNESS, self.DAMPING),
+                gravity=grav,
+            )
+            np.maximum(self._peak_e, np.abs(out.deviation), out=self._peak_e)
+            np.maximum(self._peak_f, np.abs(out.constraint_force), out=self._peak_f)
+            command = Command({self._robot: RobotCommand.torque(out.tau)})
+            done = p.duration is not None and t >= p.duration
+            return StepResult(command, SkillStatus.SUCCESS if done else SkillStatus.RUNNING)
+        q_ref = self._q_ref
+        x_ref = task_vector(q_ref)
+        x_target, v_target = self._reference(t)
+        res = self._qp.solve(
+            q_ref,
+            x_ref,
+            endobot.jacobian(q_ref),
+            v_target=v_target,
+            x_target=x_target,
+            exit_point=self._exit_base,
+            extension_rate_max=self._ldot_max,
+        )
+        self.last_qp = res
+        if "extension_rate" in res.active:
+            self._throttled += ctx.dt  # the tension bound slows the motion on purpose
+        q_ref += res.qdot * ctx.dt
+        command = Command({self._robot: RobotCommand.position(q_ref.copy(), res.qdot)})
+        if self._qp.consecutive_failures >= self.MAX_QP_FAILURES:
+            return StepResult(
+                command,
+                SkillStatus.FAILURE,
+                f"QP not solved for {self._qp.consecutive_failures} ticks ({res.status})",
+            )
+        x_meas = task_vector(np.asarray(ro.q, dtype=float))
+        e = self._fixture.value(x_meas)
+        np.maximum(self._peak_e, np.abs(e), out=self._peak_e)
+        if t < self._duration:
+            return StepResult(command)
+        error = float(np.linalg.norm(x_meas[:3] - self._x_goal[:3]))
+        if error <= self.TOLERANCE:
+            return StepResult(command, SkillStatus.SUCCESS)
+        if t >= self._duration + self.SETTLE_S + self._throttled:
+            return StepResult(
+                command,
+                SkillStatus.FAILURE,
+                f"tool tip {error * 1e3:.2f} mm from the target after {t:.2f} s",
+            )
+        return StepResult(command)
+
+    def metrics(self) -> dict[str, float]:
+        """Chapter 6 figures of this run so far (Tables 6.2-6.4, (6.54)).
+
+        Returns:
+            ``max_deviation_m`` and, in shared mode, ``max_force_N``,
+            ``constraint_stiffness_N_per_m`` (the smallest row's max|Fc| / max|e|) and
+            ``desired_stiffness_N_per_m``.
+        """
+        import numpy as np
+
+        if self._peak_e is None:
+            return {}
+        out = {"max_deviation_m": float(np.max(self._peak_e))}
+        p = self.params
+        assert isinstance(p, MoveConstrainedParams)
+        if p.mode == "shared":
+            with np.errstate(divide="ignore", invalid="ignore"):
+                k = np.where(self._peak_e > 0, self._peak_f / self._peak_e, np.nan)
+            out["max_force_N"] = float(np.max(self._peak_f))
+            out["constraint_stiffness_N_per_m"] = (
+                float(np.nanmin(k)) if np.any(np.isfinite(k)) else float("nan")
+            )
+            out["desired_stiffness_N_per_m"] = self.STIFFNESS
+        return out

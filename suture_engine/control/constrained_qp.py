@@ -305,6 +305,8 @@ class ConstrainedQP:
             "adaptive_rho": True,
         }
         defaults.update(settings or {})
+        # A row counts as active within twice the solver's absolute tolerance.
+        self._act_tol = 2.0 * float(defaults["eps_abs"]) + 1e-9
         self._solver = _osqp().OSQP()
         self._solver.setup(P, self._q, A, self._l, self._u, **defaults)
         # OSQP's compiled solver object: its update_data_vec/update_data_mat/solve are
@@ -466,8 +468,8 @@ class ConstrainedQP:
         )
 
     def _active(self, z: Array) -> tuple[str, ...]:
-        # A row is active when |A z - bound| <= 1e-6 + 1e-4 |bound| (plain floats: for
-        # ten rows this is faster than a dozen small numpy calls).
+        # A row is active when |A z - bound| <= 2 eps_abs + 1e-4 |bound| (plain floats:
+        # for ten rows this is faster than a dozen small numpy calls).
         ax = self._ax
         ax[:_N] = z[:_N]
         if self._m_soft:
@@ -476,13 +478,14 @@ class ConstrainedQP:
         out = []
         names = self.row_names
         eq = self._eq_set
+        tol = self._act_tol
         for i, (a, lo, hi) in enumerate(
             zip(ax.tolist(), self._l.tolist(), self._u.tolist(), strict=True)
         ):
             if (
                 i in eq
-                or abs(a - hi) <= 1e-6 + 1e-4 * abs(hi)
-                or abs(a - lo) <= 1e-6 + 1e-4 * abs(lo)
+                or abs(a - hi) <= tol + 1e-4 * abs(hi)
+                or abs(a - lo) <= tol + 1e-4 * abs(lo)
             ):
                 out.append(names[i])
         return tuple(out)

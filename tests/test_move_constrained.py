@@ -1,0 +1,140 @@
+"""move-constrained's start/step on the runtime's types (no physics: perfect tracking)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from skills.move_constrained import MoveConstrained
+from suture_engine.control.fixtures import Circle, Line
+from suture_engine.control.shared import task_vector
+from suture_engine.robot import endobot
+from suture_engine.runtime.context import SkillContext
+from suture_engine.runtime.observation import (
+    CommandMode,
+    Observation,
+    RobotObservation,
+    SceneGeometry,
+    SkillStatus,
+    ToolState,
+)
+
+ROBOT = "endobot_1"
+
+
+def _obs(
+    t: float, q: np.ndarray, qd: np.ndarray | None = None, exit_point=(0, 0, 0)
+) -> Observation:  # type: ignore[no-untyped-def]
+    ro = RobotObservation(
+        q=np.asarray(q, dtype=float),
+        qd=np.zeros(4) if qd is None else np.asarray(qd, dtype=float),
+        base_wrench=np.zeros(6),
+        tool=ToolState(),
+    )
+    return Observation(
+        tick=round(t * 1e3), t=t, robots={ROBOT: ro}, scene=SceneGeometry(exit_point=exit_point)
+    )
+
+
+def _ctx(obs: Observation, params: dict | None = None) -> SkillContext:
+    return SkillContext(step="s", roles={"arm": ROBOT}, dt=1e-3, start=obs, params=params or {})
+
+
+def _run(skill: MoveConstrained, q0: np.ndarray, ctx_params: dict | None = None, **obs_kw):  # type: ignore[no-untyped-def]
+    """Perfect joint tracking: the next measured q is the commanded set point."""
+    obs = _obs(0.0, q0, **obs_kw)
+    ctx = _ctx(obs, ctx_params)
+    skill.start(ctx)
+    q = q0.copy()
+    xs = []
+    for k in range(20000):
+        res = skill.step(ctx, _obs(k * 1e-3, q, **obs_kw))
+        cmd = res.command.robots[ROBOT]
+        assert cmd.mode is CommandMode.POSITION
+        q = np.array(cmd.q)
+        xs.append(task_vector(q))
+        if res.status is not SkillStatus.RUNNING:
+            return res, np.array(xs)
+    raise AssertionError("no outcome")
+
+
+def test_autonomous_line_reaches_the_target_on_the_line() -> None:
+    direction = np.array([1.0, 1.0, 2.0])
+    unit = direction / np.linalg.norm(direction)
+    q0 = endobot.inverse_kinematics(0.08 * unit, 0.0)
+    skill = MoveConstrained(
+        {
+            "robot": "arm",
+            "fixture": "line",
+            "direction": tuple(direction),
+            "target": tuple(0.14 * unit + np.array([0.004, -0.003, 0.0])),  # off the line
+            "speed": 0.02,
+        }
+    )
+    res, xs = _run(skill, q0)
+    assert res.status is SkillStatus.SUCCESS, res.message
+    line = Line(direction=direction)
+    assert np.abs([line.value(x) for x in xs]).max() < 1e-6
+    # The target projected on the line (6.35), reached to the skill's tolerance.
+    goal = line.project(np.r_[0.14 * unit + np.array([0.004, -0.003, 0.0]), 0.0])
+    assert np.linalg.norm(xs[-1][:3] - goal[:3]) <= MoveConstrained.TOLERANCE
+    assert skill.last_qp is not None and skill.last_qp.solved
+
+
+def test_autonomous_circle_goes_the_short_way_and_respects_the_extension_rate() -> None:
+    circle = Circle(center=np.array([0.0, 0.0, 0.12]), radius=0.03)
+    start = circle.inverse(np.zeros(2), np.array([0.0, 0.0]))
+    q0 = endobot.inverse_kinematics(start[:3], 0.0)
+    target = circle.inverse(np.zeros(2), np.array([-2.0, 0.0]))[:3]
+    exit_point = np.array([0.03, 0.0, 0.14])  # the suture leaves the tissue here
+    skill = MoveConstrained(
+        {
+            "robot": "arm",
+            "fixture": "circle",
+            "point": (0.0, 0.0, 0.12),
+            "radius": 0.03,
+            "target": tuple(target),
+            "speed": 0.03,
+            "max_tension": 2.0,
+        }
+    )
+    # (4.11): ldot_max = (2.0 - 0.5) / 300 = 5 mm/s.
+    params = {"suture_static_friction": 0.5, "suture_viscous_coefficient": 300.0}
+    res, xs = _run(skill, q0, ctx_params=params, exit_point=tuple(exit_point))
+    assert res.status is SkillStatus.SUCCESS, res.message
+    assert np.abs([circle.value(x) for x in xs]).max() < 1e-5
+    theta = np.unwrap([circle.free(x)[0] for x in xs])
+    assert theta.min() >= -2.0 - 1e-3 and theta.max() <= 1e-3  # the short way: clockwise
+    dist = np.linalg.norm(xs[:, :3] - exit_point, axis=1)
+    assert np.max(np.diff(dist)) / 1e-3 <= 0.005 + 1e-4
+    assert np.max(np.diff(dist)) / 1e-3 > 0.004  # the bound was reached: it was binding
+
+
+def test_shared_mode_returns_the_6_24_torques_and_reports_stiffness() -> None:
+    direction = np.array([1.0, -1.0, 2.0])
+    line = Line(direction=direction)
+    skill = MoveConstrained(
+        {
+            "robot": "arm",
+            "fixture": "line",
+            "direction": tuple(direction),
+            "mode": "shared",
+            "duration": 0.002,
+        }
+    )
+    on = 0.1 * direction / np.linalg.norm(direction)
+    q = endobot.inverse_kinematics(on + np.array([0.003, 0.0, 0.0]), 0.2)
+    obs = _obs(0.0, q)
+    skill.start(_ctx(obs))
+    res = skill.step(_ctx(obs), obs)
+    cmd = res.command.robots[ROBOT]
+    assert cmd.mode is CommandMode.TORQUE
+    x = task_vector(q)
+    fc = -MoveConstrained.STIFFNESS * line.value(x)
+    expected = endobot.jacobian(q).T @ (line.jacobian(x).T @ fc) + endobot.gravity_vector(q)
+    np.testing.assert_allclose(cmd.tau, expected, atol=1e-10)
+    m = skill.metrics()
+    assert m["desired_stiffness_N_per_m"] == MoveConstrained.STIFFNESS
+    assert m["constraint_stiffness_N_per_m"] == pytest.approx(MoveConstrained.STIFFNESS)
+    assert m["max_deviation_m"] == pytest.approx(np.abs(line.value(x)).max())
+    assert skill.step(_ctx(obs), _obs(0.003, q)).status is SkillStatus.SUCCESS
