@@ -65,8 +65,13 @@ def run_command(
     replay_trace: Path | None = None,
 ) -> int:
     """``suture run``: returns the exit code."""
+    from backends.registry import UnknownBackend
     from suture_engine.errors import SutureError
-    from suture_engine.runtime.run import ProcedureLoadError, run_procedure
+    from suture_engine.runtime.run import ProcedureLoadError, SetOverrideError, run_procedure
+
+    if not file.is_file():
+        _error(f"{file}: no such file")
+        return 2
 
     options = {}
     if backend == "replay":
@@ -111,9 +116,12 @@ def run_command(
         for problem in exc.problems:
             _error(problem)
         return 1
+    except (SetOverrideError, UnknownBackend) as exc:
+        _error(f"{exc.code}: {exc.message}")
+        return 2
     except SutureError as exc:
         _error(f"{exc.code}: {exc.message}")
-        return 2 if exc.code in ("trace-io", "trace-error") else 1
+        return 1
     except OSError as exc:
         _error(f"{exc.filename or ''}: {exc.strerror}")
         return 2

@@ -138,7 +138,7 @@ def _with_overrides(path: Path, sets: Sequence[str]) -> Any:
         else:
             params[name] = parsed
     text = yaml.safe_dump(data, sort_keys=False)
-    return load_text(text, str(path), base=path.resolve().parent)
+    return load_text(text, str(path.resolve()), base=path.resolve().parent)
 
 
 def load_plan(path: str | Path, sets: Sequence[str] = ()) -> tuple[Any, Any]:
@@ -159,7 +159,10 @@ def load_plan(path: str | Path, sets: Sequence[str] = ()) -> tuple[Any, Any]:
         raise ProcedureLoadError([f"{path}: no such file"])
     result = _with_overrides(file, sets)
     if result.problems or result.procedure is None:
-        raise ProcedureLoadError([str(p) for p in result.problems] or [f"{path}: not a procedure"])
+        raise ProcedureLoadError(
+            [p.format() if hasattr(p, "format") else str(p) for p in result.problems]
+            or [f"{path}: not a procedure"]
+        )
     try:
         plan = compile_procedure(result.procedure)
     except AutomatonError as exc:

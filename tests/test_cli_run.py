@@ -1,0 +1,159 @@
+"""``suture run`` and ``suture replay``: outputs, exit codes, determinism, crash safety, goldens."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from suture_engine.runtime.run import run_procedure
+
+ROOT = Path(__file__).resolve().parent.parent
+PROCS = ROOT / "tests" / "procedures"
+GOLDEN = ROOT / "tests" / "golden"
+SUTURE = [sys.executable, "-c", "from suture_engine.cli import main; main()"]
+
+SUMMARY_KEYS = {
+    "procedure",
+    "outcome",
+    "final_state",
+    "sim_time_s",
+    "wall_time_s",
+    "real_time_factor",
+    "control_rate_hz",
+    "max_tension_N",
+    "tension_limit_N",
+    "violations",
+    "retries",
+    "operator_events",
+    "metrics",
+    "knot",
+}
+
+
+def _suture(*args: str, cwd: Path = ROOT) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [*SUTURE, *args], cwd=cwd, capture_output=True, text=True, timeout=240, check=False
+    )
+
+
+def test_run_writes_trace_and_summary(tmp_path: Path) -> None:
+    out = tmp_path / "d"
+    res = _suture("run", str(PROCS / "steps.yaml"), "--backend", "ideal", "--out", str(out))
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert "succeeded" in res.stdout
+    summary = json.loads((out / "summary.json").read_text())
+    assert SUMMARY_KEYS <= set(summary)
+    assert summary["outcome"] == "succeeded" and summary["knot"] is None
+    assert summary["control_rate_hz"] == 1000.0
+    assert summary["tension_limit_N"] == pytest.approx(4.707, abs=1e-3)
+    assert (out / "trace.mcap").stat().st_size > 0
+
+
+def test_run_without_out_makes_a_folder_under_runs(tmp_path: Path) -> None:
+    res = _suture("run", str(PROCS / "steps.yaml"), "--backend", "ideal", cwd=tmp_path)
+    assert res.returncode == 0, res.stderr
+    [folder] = list((tmp_path / "runs").iterdir())
+    assert (folder / "trace.mcap").is_file() and (folder / "summary.json").is_file()
+
+
+def test_aborted_run_exits_1_without_traceback(tmp_path: Path) -> None:
+    res = _suture(
+        "run",
+        str(PROCS / "steps.yaml"),
+        "--backend",
+        "ideal",
+        "--operator",
+        str(PROCS / "ops-abort.yaml"),
+        "--out",
+        str(tmp_path / "d"),
+    )
+    assert res.returncode == 1
+    assert "aborted" in res.stdout and "Traceback" not in res.stderr
+    assert json.loads((tmp_path / "d" / "summary.json").read_text())["outcome"] == "aborted"
+
+
+@pytest.mark.parametrize(
+    ("args", "code", "words"),
+    [
+        (["run", "no/such/file.yaml"], 2, "no such file"),
+        (["run", str(PROCS / "steps.yaml"), "--set", "nope=1"], 2, "hold_time"),
+        (["run", str(PROCS / "steps.yaml"), "--set", "justtext"], 2, "name=value"),
+        (["run", str(PROCS / "steps.yaml"), "--backend", "pybulet"], 2, "pybullet"),
+        (["run", str(PROCS / "scene.yaml")], 1, "procedure"),
+        (["run", str(PROCS / "steps.yaml"), "--operator", str(PROCS / "scene.yaml")], 1, ""),
+        (["replay", "no/such/trace.mcap"], 2, "no such file"),
+        (["replay", str(PROCS / "steps.yaml")], 1, "trace"),
+    ],
+)
+def test_bad_input_is_a_clear_error(args: list[str], code: int, words: str) -> None:
+    res = _suture(*args)
+    assert res.returncode == code, res.stdout + res.stderr
+    assert "Traceback" not in res.stderr + res.stdout
+    assert "error" in res.stderr
+    assert words in res.stderr
+
+
+def test_same_seed_gives_a_byte_identical_trace(tmp_path: Path) -> None:
+    traces = []
+    for name in ("a", "b"):
+        result = run_procedure(
+            PROCS / "steps.yaml",
+            backend="pybullet",
+            seed=7,
+            operator_file=PROCS / "ops-snag.yaml",
+            out=tmp_path / name,
+        )
+        traces.append(result.trace.read_bytes())
+    assert traces[0] == traces[1]
+    other = run_procedure(PROCS / "steps.yaml", backend="pybullet", seed=7, out=tmp_path / "c")
+    assert other.trace.read_bytes() != traces[0]  # the operator's pull changed the run
+
+
+@pytest.mark.parametrize("golden", sorted(p.name for p in GOLDEN.glob("*.mcap")))
+def test_golden_traces_replay_and_check(golden: str) -> None:
+    path = GOLDEN / golden
+    assert path.stat().st_size <= 2 * 1024 * 1024
+    res = _suture("replay", str(path.relative_to(ROOT)), "--check")
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert "check passed" in res.stdout
+
+
+def test_changing_a_parameter_fails_the_check_at_the_first_diverging_tick() -> None:
+    res = _suture("replay", "tests/golden/reach.mcap", "--check", "--set", "height=30 mm")
+    assert res.returncode == 1
+    assert "check failed" in res.stdout
+    assert "first at tick 1 " in res.stdout
+    assert "/command/endobot_1" in res.stdout
+    assert "Traceback" not in res.stderr
+
+
+def test_a_killed_run_leaves_a_trace_that_replays(tmp_path: Path) -> None:
+    out = tmp_path / "killed"
+    proc = subprocess.Popen(
+        [*SUTURE, "run", "tests/procedures/reach.yaml", "--out", str(out)],
+        cwd=ROOT,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    trace = out / "trace.mcap"
+    deadline = time.monotonic() + 60
+    # wait for at least two flushed chunks (the writer flushes every simulated second)
+    while time.monotonic() < deadline and proc.poll() is None:
+        if trace.exists() and trace.stat().st_size > 200_000:
+            break
+        time.sleep(0.05)
+    assert proc.poll() is None, "the run ended before it could be killed"
+    os.kill(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert not (out / "summary.json").exists()
+    res = _suture("replay", str(trace), "--check")
+    assert "Traceback" not in res.stderr + res.stdout
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert "ends early" in res.stdout and "check passed" in res.stdout
