@@ -342,7 +342,9 @@ class EndoBotSim:
         return np.array(tf)
 
     def apply(self, tau: Vec) -> None:
-        """Command joint torques for the next step (friction added here).
+        """Command joint torques for the next step only (friction added here).
+
+        PyBullet clears joint torques after each ``stepSimulation``: call this every tick.
 
         Args:
             tau: motor torques [N*m, N*m, N*m, N]; clipped to the motor limits when
