@@ -168,6 +168,32 @@ def identify(
     )
 
 
+@app.command("trace")
+def trace_info(
+    file: Annotated[Path, typer.Argument(help="A trace file (trace.mcap).")],
+    json_: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+) -> None:
+    """Show a trace: complete or where it stops, metadata, channels and counts."""
+    from suture_engine.trace.cli_trace import trace_command
+
+    raise typer.Exit(trace_command(file, as_json=json_))
+
+
+@app.command()
+def diff(
+    expected: Annotated[Path, typer.Argument(help="The reference (golden) trace.")],
+    actual: Annotated[Path, typer.Argument(help="The trace to check.")],
+    topic: Annotated[
+        list[str] | None,
+        typer.Option(help="Compare only these topics or globs (repeatable)."),
+    ] = None,
+) -> None:
+    """Compare two traces with the golden tolerances; print the first divergence."""
+    from suture_engine.trace.cli_trace import diff_command
+
+    raise typer.Exit(diff_command(expected, actual, topics=topic))
+
+
 def main() -> None:
     """Entry point of the ``suture`` console script."""
     app()

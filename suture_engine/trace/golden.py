@@ -199,7 +199,10 @@ class GoldenResult:
         if others:
             lines.append(f"also diverging ({len(others)} more channels):")
             for c in others[:10]:
-                lines.append(f"  {c.channel} from t = {c.time_ns / 1e9:.9f} s: {c.field}")
+                where = c.field or "<message>"
+                lines.append(
+                    f"  {c.channel} from t = {c.time_ns / 1e9:.9f} s: {where} ({c.reason})"
+                )
         lines.append(f"compared {head}")
         return "\n".join(lines)
 
@@ -282,7 +285,7 @@ def _compare_channel(
                 topic,
                 i,
                 "",
-                _summary(e),
+                e.data,
                 _MISSING,
                 None,
                 f"actual trace ends after {len(actual)} messages on this channel",
@@ -296,7 +299,7 @@ def _compare_channel(
                 i,
                 "",
                 _MISSING,
-                _summary(a),
+                a.data,
                 None,
                 f"unexpected message: expected only {len(expected)} on this channel",
             )
@@ -377,10 +380,8 @@ def _is_float_pair(e: Any, a: Any) -> bool:
     )
 
 
-def _summary(msg: TraceMessage) -> str:
-    return _show(msg.data)
-
-
 def _show(value: Any) -> str:
+    if isinstance(value, str) and value == _MISSING:
+        return value
     text = repr(value)
     return text if len(text) <= 200 else text[:197] + "..."
