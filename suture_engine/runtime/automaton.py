@@ -494,13 +494,13 @@ class Automaton:
                     action,
                 )
             target = step or self.interrupted_step or self.step_name or self.plan.initial
-            out: list[TransitionRecord] = []
+            interrupt: list[TransitionRecord] = []
             if self.mode is Mode.AUTONOMOUS:
                 if step is None or step == self.step_name:
                     return []
-                out = self.unpredictable("operator-interrupt", operator_lock=True)
+                interrupt = self.unpredictable("operator-interrupt", operator_lock=True)
             self.waiting_for_operator = False
-            return out + self._enter_step("resume", "operator", target)
+            return interrupt + self._enter_step("resume", "operator", target)
         if action == "abort":
             return [self._fire("abort", "operator")]
         raise AutomatonError(

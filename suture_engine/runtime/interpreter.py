@@ -150,6 +150,7 @@ class Interpreter:
         self.wall_time_s = 0.0
         self.stop_reason = ""
         self._waiting_ticks = 0
+        self._last_skill: Any = None
 
     # ----------------------------------------------------------------- skills
     def _base_poses(self) -> dict[str, Any]:
@@ -208,6 +209,9 @@ class Interpreter:
         return meas, Observation(meas.tick, meas.t, robots, self.geometry)
 
     def _record_transitions(self, time_ns: int, records: list[Any]) -> None:
+        if records and self._last_skill is not None:
+            self._collect_metrics(self._last_skill)
+        self._last_skill = self.automaton.active_skill
         for rec in records:
             self.recorder.transition(time_ns, rec)
 
@@ -245,6 +249,7 @@ class Interpreter:
             records = a.unpredictable(f"skill-failure:{type(exc).__name__}: {exc}")
             self._record_transitions(time_ns, records)
             return None
+        self._qp_tick(time_ns, a.active_skill, spec)
         tension = self.tension.estimate(obs)
         faults = {n: r.fault for n, r in meas.robots.items()}
         violation = self.monitor.check(
@@ -270,6 +275,26 @@ class Interpreter:
         if result.status is SkillStatus.SUCCESS:
             self._record_transitions(time_ns, a.planned())
         return result.command
+
+    def _qp_tick(self, time_ns: int, skill: Any, spec: StepSpec) -> None:
+        """Trace the skill's QP status and count consecutive failed solves (for the monitor)."""
+        res = getattr(skill, "last_qp", None)
+        if res is None:
+            return
+        robot = spec.robots[0] if spec.robots else self.robots[0]
+        self._qp_failures[robot] = 0 if res.solved else self._qp_failures[robot] + 1
+        self.recorder.qp(time_ns, robot, res)
+
+    def _collect_metrics(self, skill: Any) -> None:
+        """Merge the finishing skill's metrics (e.g. chapter 6 stiffness) into the summary's."""
+        metrics = getattr(skill, "metrics", None)
+        if skill is None or metrics is None:
+            return
+        try:
+            values = metrics()
+        except Exception as exc:  # a metric must never end a run
+            values = {"metrics_error": f"{type(exc).__name__}: {exc}"}
+        self.metrics.update(values)
 
     def _manual_check(self, time_ns: int, obs: Observation) -> None:
         a = self.automaton
@@ -354,6 +379,8 @@ class Interpreter:
         finally:
             self.wall_time_s = time.perf_counter() - t0
             self.recorder.close()
+        if not self.automaton.finished:
+            self._collect_metrics(self.automaton.active_skill)
         return self.summary(procedure, backend_name)
 
     def summary(self, procedure: str, backend_name: str) -> RunSummary:

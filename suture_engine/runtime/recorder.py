@@ -50,6 +50,9 @@ class Recorder:
     def event(self, time_ns: int, name: str, kind: str, state: str, detail: str) -> None:
         """Record an event that changes no state (e.g. a refused operator action)."""
 
+    def qp(self, time_ns: int, robot: str, result: Any) -> None:
+        """Record one QP solve's status (a ``constrained_qp.QPResult``)."""
+
     def close(self) -> None:
         """Finish the trace."""
 
@@ -185,6 +188,19 @@ class TraceRecorder(Recorder):
             self._ch.EVENTS,
             time_ns,
             {"name": name, "kind": _EVENT_KIND.get(kind, "info"), "state": state, "detail": detail},
+        )
+
+    def qp(self, time_ns: int, robot: str, result: Any) -> None:
+        """Record one QP solve on ``/qp/<robot>`` (the wall-clock solve time is dropped)."""
+        self.writer.write(
+            self._ch.qp_topic(robot),
+            time_ns,
+            {
+                "status": str(result.status),
+                "iterations": int(result.iterations),
+                "active_constraints": list(result.active),
+                "solve_time_us": float(result.solve_time_s) * 1e6,
+            },
         )
 
     def close(self) -> None:
