@@ -11,6 +11,7 @@ commands and events with the recorded ones within explicit tolerances.
 from __future__ import annotations
 
 import os
+import re
 import tempfile
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
@@ -118,8 +119,21 @@ def _with_overrides(path: Path, sets: Sequence[str]) -> Any:
 
     if not sets:
         return load(path)
+
+    class _Loader(yaml.SafeLoader):
+        """YAML 1.2 booleans: ``on``/``off``/``yes``/``no`` stay strings (``on:`` keys)."""
+
+    _Loader.yaml_implicit_resolvers = {
+        k: [(tag, rx) for tag, rx in v if tag != "tag:yaml.org,2002:bool"]
+        for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()
+    }
+    _Loader.add_implicit_resolver(
+        "tag:yaml.org,2002:bool",
+        re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"),
+        list("tTfF"),
+    )
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        data = yaml.load(path.read_text(encoding="utf-8"), Loader=_Loader)
     except (OSError, yaml.YAMLError) as exc:
         raise ProcedureLoadError([f"{path}: cannot read: {exc}"]) from None
     params = data.get("params") if isinstance(data, dict) else None
