@@ -67,7 +67,9 @@ class LqrDesign(NamedTuple):
 class LqrWeights(NamedTuple):
     """Diagonal LQR weights for one joint's augmented error state (5.43, 5.61).
 
-    Scalars apply to every joint; arrays give one value per joint.
+    Scalars apply to every joint; arrays give one value per joint. The defaults
+    put each joint's error poles near ``-31 +- 31j`` and ``-5`` [1/s], a
+    bandwidth comparable with the 7 Hz PD of (5.17).
 
     Attributes:
         position: weight on the position error ``q - q_d`` [1/rad^2].
@@ -77,9 +79,9 @@ class LqrWeights(NamedTuple):
         effort: ``rho`` in ``R = rho I`` on the commanded acceleration [s^4/rad^2].
     """
 
-    position: float | FloatArray = 1.0e4
-    velocity: float | FloatArray = 1.0
-    integral: float | FloatArray = 1.0e4
+    position: float | FloatArray = 4.0e6
+    velocity: float | FloatArray = 1.0e2
+    integral: float | FloatArray = 1.0e8
     effort: float | FloatArray = 1.0
 
 
