@@ -105,7 +105,8 @@ class ExperimentResult(NamedTuple):
         operator_slope: least-squares slope of the operator's normal force on e [N/m].
         free_travel: range of the free coordinate covered [m or rad].
         roll_range: range of the roll covered [rad].
-        saturated_ticks: ticks where a motor torque hit its limit.
+        saturated_ticks: ticks where a motor torque hit its limit (0 when not saturating).
+        saturate: whether the motors' limits applied.
         t: time [s]; e: deviations (T, m) [m]; fc: constraint forces (T, m) [N];
         f_op: operator normal forces (T, m) [N]; x: task vectors (T, 4).
     """
@@ -119,6 +120,7 @@ class ExperimentResult(NamedTuple):
     free_travel: float
     roll_range: float
     saturated_ticks: int
+    saturate: bool
     t: Array
     e: Array
     fc: Array
@@ -150,6 +152,7 @@ def run_experiment(
     operator: OperatorModel | None = None,
     friction: bool = True,
     velocity_pole: float = 200.0,
+    saturate: bool = True,
     seed: int = 0,
 ) -> ExperimentResult:
     """Run one chapter 6 experiment on a PyBullet EndoBot (headless).
@@ -163,6 +166,8 @@ def run_experiment(
         operator: the simulated operator (default :class:`OperatorModel`).
         friction: simulate joint friction (model b, Coulomb + viscous).
         velocity_pole: washout filter pole for the velocity estimate [rad/s] (3.79).
+        saturate: clip the torques to the motors' limits (Table 3.1); False shows what
+            the control law does with unlimited actuators.
         seed: seed of the sensor models (ideal sensors here: no effect).
 
     Returns:
@@ -178,7 +183,7 @@ def run_experiment(
     try:
         p.setGravity(0.0, 0.0, -9.81, physicsClientId=client)
         q0 = _start_q(fixture)
-        sim = EndoBotSim(client, q0=q0, friction=friction, seed=seed)
+        sim = EndoBotSim(client, q0=q0, friction=friction, seed=seed, saturate=saturate)
         _, base_quat = p.getBasePositionAndOrientation(sim.body_id, physicsClientId=client)
         rot = np.array(p.getMatrixFromQuaternion(base_quat)).reshape(3, 3)  # base -> world
         gains = TaskSpaceGains(stiffness=stiffness, damping=damping)
@@ -210,9 +215,11 @@ def run_experiment(
                 if fr is not None:
                     tau_shared = tau_shared + fr
             tau = tau_shared + grav
-            if np.any(np.abs(tau) >= limits):
-                saturated += 1
-            applied = np.clip(tau, -limits, limits)
+            applied = tau
+            if saturate:
+                if np.any(np.abs(tau) >= limits):
+                    saturated += 1
+                applied = np.clip(tau, -limits, limits)
             # The operator's hand, in the base frame: slide along the fixture, circle round it.
             free = f_start.copy()
             amp = op.circle_slide if isinstance(fixture, Circle) else op.slide
@@ -283,6 +290,7 @@ def run_experiment(
             free_travel=float(np.ptp(free_traj)),
             roll_range=float(np.ptp(x_log[skip:, 3])),
             saturated_ticks=saturated,
+            saturate=saturate,
             t=t_log,
             e=e_log,
             fc=fc_log,
