@@ -15,7 +15,7 @@ import pytest
 
 from backends.pybullet.scene import build_scene, pull_ends
 from backends.pybullet.suture import InvalidSutureParams, SutureParams, knotted_path
-from backends.pybullet.tools import Grasper, JawState, Stitcher
+from backends.pybullet.tools import HOOK_MOUTH, Grasper, JawState, Stitcher
 
 
 def _classify(points):  # type: ignore[no-untyped-def]
@@ -129,31 +129,45 @@ def test_grasper_closes_after_travel_time_and_releases() -> None:
         scene.close()
 
 
-@pytest.mark.xfail(
-    reason="known defect: the extended hook does not yet lift the thread", strict=True
-)
-def test_hook_extends_and_catches_thread() -> None:
+@pytest.mark.parametrize("extend", [True, False])
+def test_hook_catches_and_lifts_thread_only_when_extended(extend: bool) -> None:
+    """A tool pointing down (as on the EndoBot) passes its hook under the thread, moves
+    sideways so the thread sits in the hook's mouth, then lifts 30 mm: the extended hook
+    carries the thread up; retracted (inside the shaft) it catches nothing."""
+    import pybullet as p
+
     scene = build_scene({"tissue": {}})
     try:
-        _, right = _graspers(scene)
+        # Both ends held still; a third tool does the hooking.
+        for end in _graspers(scene):
+            end.close()
+        hook = Grasper.create(scene.client, "hook", (0.0, 0.1, 0.1), suture=scene.suture)
+        scene.tools["hook"] = hook
+        # Tool +z points down, the hook's plane (tool x-z) across the thread (world y-z).
+        down = p.getQuaternionFromEuler([math.pi, 0.0, math.pi / 2])
         mid = scene.suture.centerline()[20]
-        # Park the hook's barb just below the thread's middle, then lift: the thread rides up.
-        # The hook's plane (its local x-z) across the thread (world y-z).
-        yaw = (0.0, 0.0, math.sin(math.pi / 4), math.cos(math.pi / 4))
-        right.set_pose((mid[0], mid[1] - 1.25e-3, mid[2] - 10e-3), yaw)
-        for _ in range(300):
+        x, z = mid[0], mid[2]  # the bend sits hook_reach + 0.5 mm below the tool tip
+        y0, y1 = mid[1] - HOOK_MOUTH - 4e-3, mid[1] - HOOK_MOUTH / 2
+        hook.set_pose((x, y0, z), down)
+        if extend:
+            hook.extend_hook()
+        for _ in range(int(hook.hook_travel_time * 1000) + 100):
             scene.step()
-        right.extend_hook()
-        for _ in range(int(right.hook_travel_time * 1000) + 5):
+        assert hook.hook_extension == pytest.approx(1.0 if extend else 0.0)
+        for k in range(300):  # sideways: the barb passes under the thread
+            hook.set_pose((x, y0 + (y1 - y0) * k / 299, z), down)
             scene.step()
-        assert right.hook_extension == pytest.approx(1.0)
-        for k in range(600):
-            right.set_pose((mid[0], mid[1] - 1.25e-3, mid[2] - 10e-3 + 0.03 * k / 600), yaw)
+        start = scene.suture.centerline()[20][2]
+        for k in range(600):  # lift
+            hook.set_pose((x, y1, z + 0.03 * k / 599), down)
             scene.step()
-        lifted = scene.suture.centerline()[18:23, 2].max()
-        assert lifted > mid[2] + 0.01
+        lifted = scene.suture.centerline()[18:23, 2].max() - start
     finally:
         scene.close()
+    if extend:
+        assert lifted > 0.02
+    else:
+        assert abs(lifted) < 0.005
 
 
 def test_stitcher_passes_needle_to_other_jaw() -> None:

@@ -35,6 +35,7 @@ if TYPE_CHECKING:
     from backends.pybullet.suture import Suture
 
 __all__ = [
+    "HOOK_MOUTH",
     "BentTipGrasper",
     "Grasper",
     "JawState",
@@ -46,6 +47,8 @@ __all__ = [
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
 _IDENTITY: Quat = (0.0, 0.0, 0.0, 1.0)
+HOOK_MOUTH = 3.5e-3
+"""Distance from the hook's shank to its barb, along the tip's x [m]."""
 
 
 class ToolError(SutureError):
@@ -347,12 +350,14 @@ class Grasper(Tool):
         c = self.client
         r = 0.4e-3
         shapes = [p.GEOM_CAPSULE] * 3
-        # Shank along z, then a bend and a barb pointing back (-z) at x = 2.5 mm.
-        positions = [[0.0, 0, -3e-3], [1.25e-3, 0, 0.5e-3], [2.5e-3, 0, -1e-3]]
+        # Shank along z up to z = 1 mm, a bend across to x = HOOK_MOUTH and a barb pointing
+        # back down to z = -4 mm: the mouth between shank and barb opens towards -z.
+        w = HOOK_MOUTH
+        positions = [[0.0, 0, -3e-3], [w / 2, 0, 0.5e-3], [w, 0, -1.75e-3]]
         q_shank = _IDENTITY
         q_bend = p.getQuaternionFromEuler([0, math.pi / 2, 0])
         orientations = [q_shank, q_bend, q_shank]
-        lengths = [8e-3, 2.5e-3, 3e-3]
+        lengths = [8e-3, w, 4.5e-3]
         col = p.createCollisionShapeArray(
             shapeTypes=shapes,
             radii=[r] * 3,
@@ -375,18 +380,7 @@ class Grasper(Tool):
         p.changeDynamics(self.hook_body, -1, lateralFriction=0.6, physicsClientId=c)
         p.setCollisionFilterPair(self.hook_body, self.body, -1, -1, 0, physicsClientId=c)
         self._set_hook_collision(False)
-        self._hook_drive = p.createConstraint(
-            self.body,
-            -1,
-            self.hook_body,
-            -1,
-            p.JOINT_FIXED,
-            [0, 0, 0],
-            [0, 0, -self._hook_offset()],
-            [0, 0, 0],
-            physicsClientId=c,
-        )
-        p.changeConstraint(self._hook_drive, maxForce=self.drive_force, physicsClientId=c)
+        self._drive_hook()
 
     def _set_hook_collision(self, on: bool) -> None:
         """A retracted hook lies inside the shaft and touches nothing; an extended one does."""
@@ -414,7 +408,6 @@ class Grasper(Tool):
         self._hook_target = 0.0
 
     def _step_hook(self) -> None:
-        import pybullet as p
 
         if self.hook_body < 0 or self.hook_extension == self._hook_target:
             return
@@ -424,12 +417,27 @@ class Grasper(Tool):
         self.hook_extension += max(-rate, min(rate, delta))
         if (before < 0.5) != (self.hook_extension < 0.5):
             self._set_hook_collision(self.hook_extension >= 0.5)
-        p.changeConstraint(
-            self._hook_drive,
-            jointChildPivot=[0, 0, -self._hook_offset()],
-            maxForce=self.drive_force,
-            physicsClientId=self.client,
+        self._drive_hook()
+
+    def _drive_hook(self) -> None:
+        """(Re)build the fixed constraint holding the hook at its current offset on the jaws."""
+        import pybullet as p
+
+        c = self.client
+        if self._hook_drive >= 0:
+            p.removeConstraint(self._hook_drive, physicsClientId=c)
+        self._hook_drive = p.createConstraint(
+            self.body,
+            -1,
+            self.hook_body,
+            -1,
+            p.JOINT_FIXED,
+            [0, 0, 0],
+            [0, 0, self._hook_offset()],
+            [0, 0, 0],
+            physicsClientId=c,
         )
+        p.changeConstraint(self._hook_drive, maxForce=self.drive_force, physicsClientId=c)
 
 
 @dataclass
