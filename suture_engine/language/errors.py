@@ -96,11 +96,16 @@ def problems_from_validation(
         elif kind == "missing" and loc:
             message = f"missing required key {str(loc[-1])!r}"
         elif "input" in err and kind not in ("missing",):
-            found = repr(err["input"])
+            found = (
+                str(err["input"])
+                if type(err["input"]).__name__ == "Quantity"
+                else repr(err["input"])
+            )
             if len(found) > 60:
                 found = found[:57] + "..."
             message = f"{message}, found {found}"
-        problems.append(source.problem(code, message, (*prefix, *loc)))
+        at_key = kind == "extra_forbidden"
+        problems.append(source.problem(code, message, (*prefix, *loc), at_key=at_key))
     return _dedupe(problems)
 
 

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import difflib
 import os
+import re
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -196,13 +197,18 @@ def _load_document(
     values = _resolve_params(ctx, head, source, binding)
     names: dict[str, Any] = dict(values)
     names["params"] = Namespace("params", values)
+    # parameters already reported as bad: expressions using them are skipped silently
+    raw_params = data.get("params")
+    for key in [*head.params, *(raw_params if isinstance(raw_params, dict) else ())]:
+        if isinstance(key, str) and key not in values:
+            names[key] = _INVALID
 
     # scene: the caller's, else this file's own
     scene = caller_scene
     if scene is None and head.scene is not None:
         scene = _load_scene(ctx, head, source, file, names)
     elif scene is None and not stack:
-        add(source.problem("missing-scene", "the procedure names no scene", ("procedure",)))
+        add(source.problem("missing-scene", "the procedure names no scene", ()))
     if scene is not None:
         names.update(_scene_namespaces(scene))
 
@@ -496,6 +502,9 @@ def _resolve(
         return [_resolve(ctx, v, source, (*path, i), names) for i, v in enumerate(value)]
     if not isinstance(value, str) or _INTERP not in value:
         return value
+    invalid = [k for k, v in names.items() if isinstance(v, InvalidValue)]
+    if invalid and any(re.search(rf"(?<![\w.]){re.escape(k)}(?!\w)", value) for k in invalid):
+        return _INVALID
     try:
         inner = find_expression(value)
         if inner is not None and inner.count(_INTERP) == 0 and "}" not in inner:
@@ -664,7 +673,7 @@ def _load_use(
         return None
 
     def locate(code: str, message: str, key: str) -> Problem:
-        return source.problem(code, message, (*where, "with", key))
+        return source.problem(code, message, (*where, "with", key), at_key=code == "unknown-param")
 
     binding = _Binding(dict(doc.with_), locate)
     return _load_document(ctx, sub.data, sub.source, target, binding, scene, roles, chain)

@@ -57,11 +57,14 @@ class SourceMap:
 
     Attributes:
         file: the file the document came from.
-        positions: path -> (line, column), both 1-based.
+        positions: path -> (line, column), both 1-based: a scalar's value, or the key
+            of a nested mapping or list.
+        keys: path -> (line, column) of the mapping key that names the node.
     """
 
     file: str
     positions: dict[PathKey, tuple[int, int]] = field(default_factory=dict)
+    keys: dict[PathKey, tuple[int, int]] = field(default_factory=dict)
 
     def locate(self, path: PathKey) -> tuple[int, int]:
         """The position of ``path``, or of its nearest located ancestor."""
@@ -72,9 +75,10 @@ class SourceMap:
             key = key[:-1]
         return self.positions.get((), (1, 1))
 
-    def problem(self, code: str, message: str, path: PathKey) -> Problem:
-        """A :class:`Problem` located at ``path`` of this document."""
-        line, column = self.locate(path)
+    def problem(self, code: str, message: str, path: PathKey, at_key: bool = False) -> Problem:
+        """A :class:`Problem` located at ``path`` of this document (at its key if asked)."""
+        key = self.keys.get(tuple(path)) if at_key else None
+        line, column = key if key is not None else self.locate(path)
         return Problem(code, message, self.file, line, column, dotted(path))
 
 
@@ -154,11 +158,17 @@ class _Builder:
                     raise self.fail(
                         "duplicate-key", f"duplicate key {key!r}", key_node, (*path, key)
                     )
-                self.source.positions[(*path, key)] = (
+                out[key] = self.build(value_node, (*path, key), depth + 1)
+                self.source.keys[(*path, key)] = (
                     key_node.start_mark.line + 1,
                     key_node.start_mark.column + 1,
                 )
-                out[key] = self.build(value_node, (*path, key), depth + 1)
+                if not isinstance(value_node, yaml.ScalarNode):
+                    # a nested mapping or list is located at its key; a scalar at its value
+                    self.source.positions[(*path, key)] = (
+                        key_node.start_mark.line + 1,
+                        key_node.start_mark.column + 1,
+                    )
             return out
         raise self.fail("yaml-syntax", "unsupported YAML node", node, path)  # pragma: no cover
 

@@ -254,6 +254,34 @@ def _roles(proc: Procedure) -> list[Problem]:
     return out
 
 
+def _field_markers(info: Any) -> tuple[set[str], bool, str | None]:
+    """SceneRef kinds, whether a position, and the unit of a pydantic field.
+
+    Pydantic moves a top-level ``Annotated`` marker into ``info.metadata``; markers
+    inside unions stay in the annotation.
+    """
+    kinds, position = _markers(info.annotation)
+    unit = _unit(info.annotation)
+    for meta in info.metadata:
+        if isinstance(meta, SceneRef):
+            kinds.add(meta.kind)
+        if isinstance(meta, Unit):
+            unit = meta.unit
+            position = position or (meta.unit == "m" and info.annotation is not float)
+    return kinds, position, unit
+
+
+def _unit(annotation: Any) -> str | None:
+    for meta in getattr(annotation, "__metadata__", ()) or ():
+        if isinstance(meta, Unit):
+            return meta.unit
+    for arg in getattr(annotation, "__args__", ()) or ():
+        found = _unit(arg)
+        if found is not None:
+            return found
+    return None
+
+
 def _markers(annotation: Any) -> tuple[set[str], bool]:
     """SceneRef kinds and whether a Unit("m") position is among the annotation's branches."""
     kinds: set[str] = set()
@@ -298,7 +326,7 @@ def _state_checks(proc: Procedure, state: LoadedState) -> list[Problem]:
     fields = type(params).model_fields
     for name, info in fields.items():
         value = getattr(params, name)
-        kinds, _ = _markers(info.annotation)
+        kinds, _, _ = _field_markers(info)
         if not isinstance(value, str):
             continue
         if "role" in kinds and value not in proc.roles:
@@ -322,10 +350,9 @@ def _state_checks(proc: Procedure, state: LoadedState) -> list[Problem]:
             )
     for name, info in fields.items():
         value = getattr(params, name)
-        meta = [m for m in info.metadata if isinstance(m, Unit)]
         if limit is None or "tension" not in name or not isinstance(value, float):
             continue
-        if meta and meta[0].unit == "N" and value > limit + 1e-12:
+        if _field_markers(info)[2] == "N" and value > limit + 1e-12:
             assert scene is not None
             out.append(
                 src.problem(
@@ -393,7 +420,7 @@ def _reach_checks(
     for name, info in type(params).model_fields.items():
         if name in ("offset", "point") and state.skill in ("move-constrained", "rotate-about"):
             continue
-        kinds, position = _markers(info.annotation)
+        kinds, position, _ = _field_markers(info)
         value = getattr(params, name)
         if isinstance(value, str) and "point" in kinds:
             world = scene.tissue.points.get(value)

@@ -1,0 +1,129 @@
+"""Loading the bundled procedures: SI values, scenes, use: with parameters."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import pytest
+
+from suture_engine.language.loader import load, load_procedure
+from suture_engine.language.scene import GRAVITY
+from suture_engine.validation.problem import ProblemError
+
+ROOT = Path(__file__).resolve().parent.parent
+PROCEDURES = ROOT / "procedures"
+BUNDLED = sorted(PROCEDURES.glob("*.yaml"))
+
+
+def test_the_bundled_set_is_complete() -> None:
+    names = {p.stem for p in BUNDLED}
+    assert {
+        "stitch",
+        "knot-algorithm-1",
+        "knot-algorithm-2",
+        "knot-algorithm-3",
+        "square-knot",
+        "surgeons-knot",
+        "secure-knot",
+        "interrupted-suture",
+        "shared-control-line",
+        "shared-control-circle",
+    } <= names
+
+
+@pytest.mark.parametrize("path", BUNDLED, ids=lambda p: p.stem)
+def test_bundled_procedures_load_without_problems(path: Path) -> None:
+    result = load(path)
+    assert result.problems == []
+    assert result.procedure is not None
+    assert result.procedure.initial in result.procedure.states
+
+
+def test_quantities_are_si_after_load() -> None:
+    proc = load_procedure(PROCEDURES / "stitch.yaml")
+    assert proc.params["tail"] == pytest.approx(0.030)
+    bite = proc.states["bite"]
+    assert bite.params is not None
+    assert bite.params.pull_length == pytest.approx(0.030)  # type: ignore[attr-defined]
+    assert bite.invariant is not None and bite.invariant.max_tension == pytest.approx(3.0)
+    assert bite.timeout == pytest.approx(30.0)
+    assert proc.states["approach"].params.offset == pytest.approx((0, 0, 0.01))  # type: ignore[union-attr]
+
+
+def test_scene_tables_and_tension_limit() -> None:
+    proc = load_procedure(PROCEDURES / "stitch.yaml")
+    scene = proc.scene
+    assert scene is not None
+    # Table 7.1: USP 2-0 is 0.30-0.339 mm and 1.44 kgf; Table 7.2: skin pulls out at 17.85 N
+    assert scene.suture.diameter == pytest.approx(0.5 * (0.30 + 0.339) * 1e-3)
+    assert scene.suture.knot_pull_strength == pytest.approx(1.44 * GRAVITY)
+    assert scene.tissue.pullout_tension == pytest.approx(17.85)
+    assert scene.tension_limit == pytest.approx(min(1.44 * GRAVITY, 17.85) * 0.5)
+    assert scene.robots["endobot_1"].base.rpy[0] == pytest.approx(math.pi)
+    assert scene.physics.measurement_delay == pytest.approx(0.002)
+
+
+def test_square_knot_is_a_simple_knot_then_its_mirror() -> None:
+    proc = load_procedure(PROCEDURES / "square-knot.yaml")
+    first, second = proc.states["simple-knot"], proc.states["mirrored-knot"]
+    assert first.use is not None and second.use is not None
+    assert first.use.name == second.use.name == "knot-algorithm-2"
+    assert first.use.params["mirror"] is False
+    assert second.use.params["mirror"] is True
+    # the mirror image loops the other way round the hook (4.4.2)
+    assert first.use.states["over-hook"].params.direction == "front-to-back"  # type: ignore[union-attr]
+    assert second.use.states["over-hook"].params.direction == "back-to-front"  # type: ignore[union-attr]
+    # the second throw does not stitch again
+    assert second.use.states["stitch"].enabled is False
+    assert first.use.states["stitch"].enabled is True
+
+
+@pytest.mark.parametrize("algorithm", [1, 2, 3])
+def test_square_knot_algorithm_parameter(algorithm: int) -> None:
+    proc = load_procedure(PROCEDURES / "square-knot.yaml", params={"algorithm": algorithm})
+    assert proc.states["simple-knot"].use.name == f"knot-algorithm-{algorithm}"  # type: ignore[union-attr]
+    if algorithm == 1:
+        rotate = proc.states["mirrored-knot"].use.states["rotate"].params  # type: ignore[union-attr]
+        assert rotate.angle == pytest.approx(-math.pi)  # type: ignore[union-attr]
+    if algorithm == 3:
+        assert proc.scene is not None
+        assert proc.scene.robots["endobot_2"].tool == "bent-tip-grasper"
+
+
+def test_square_knot_rejects_algorithm_4() -> None:
+    with pytest.raises(ProblemError) as info:
+        load_procedure(PROCEDURES / "square-knot.yaml", params={"algorithm": 4})
+    assert [p.code for p in info.value.problems] == ["out-of-bounds"]
+
+
+def test_surgeons_knot_first_throw_has_two_turns() -> None:
+    proc = load_procedure(PROCEDURES / "surgeons-knot.yaml")
+    wrap = proc.states["double-knot"].use.states["over-hook"].params  # type: ignore[union-attr]
+    assert wrap.turns == 2  # type: ignore[union-attr]
+
+
+def test_interrupted_suture_ties_three_stitches_5mm_apart() -> None:
+    proc = load_procedure(PROCEDURES / "interrupted-suture.yaml")
+    assert proc.scene is not None
+    entries = []
+    for name in ("stitch-1", "stitch-2", "stitch-3"):
+        square = proc.states[name].use
+        assert square is not None and square.name == "square-knot"
+        entries.append(proc.scene.tissue.points[square.params["entry"]])
+    xs = [e[0] for e in entries]
+    assert xs[1] - xs[0] == pytest.approx(0.005) and xs[2] - xs[1] == pytest.approx(0.005)
+
+
+def test_shared_control_line_uses_table_6_1() -> None:
+    proc = load_procedure(PROCEDURES / "shared-control-line.yaml")
+    params = proc.states["along-line"].params
+    assert params.fixture == "line"  # type: ignore[union-attr]
+    assert params.direction == (1.0, 1.0, -2.0)  # type: ignore[union-attr]
+    assert params.point == (0.0, 0.0, 0.0)  # type: ignore[union-attr]
+
+
+def test_override_of_unknown_parameter_is_reported() -> None:
+    result = load(PROCEDURES / "stitch.yaml", params={"tial": "20 mm"})
+    (problem,) = result.problems
+    assert problem.code == "unknown-param" and "did you mean 'tail'" in problem.message
