@@ -94,6 +94,9 @@ class MoveConstrained(Skill):
     SETTLE_S: ClassVar[float] = 1.0
     """Time allowed after the reference's end to reach the tolerance [s], extended by
     the time the extension-rate bound (4.11) was active."""
+    MIN_DEVIATION: ClassVar[float] = 1e-5
+    """Smallest peak deviation [m] from which a stiffness is reported; below it the
+    ratio max|Fc| / max|e| measures model noise, not the virtual spring."""
     MAX_QP_FAILURES: ClassVar[int] = 10
     """Consecutive unsolved ticks (command held) after which the skill fails."""
     SUTURE_STATIC_FRICTION: ClassVar[float] = 0.3
@@ -326,8 +329,9 @@ class MoveConstrained(Skill):
 
         Returns:
             ``max_deviation_m`` and, in shared mode, ``max_force_N``,
-            ``constraint_stiffness_N_per_m`` (the smallest row's max|Fc| / max|e|) and
-            ``desired_stiffness_N_per_m``.
+            ``constraint_stiffness_N_per_m`` (the smallest row's max|Fc| / max|e| over
+            rows that deviated at least ``MIN_DEVIATION``; nan if none did; Fc is the
+            commanded constraint force (6.20)) and ``desired_stiffness_N_per_m``.
         """
         import numpy as np
 
@@ -337,8 +341,9 @@ class MoveConstrained(Skill):
         p = self.params
         assert isinstance(p, MoveConstrainedParams)
         if p.mode == "shared":
+            valid = self._peak_e >= self.MIN_DEVIATION
             with np.errstate(divide="ignore", invalid="ignore"):
-                k = np.where(self._peak_e > 0, self._peak_f / self._peak_e, np.nan)
+                k = np.where(valid, self._peak_f / np.where(valid, self._peak_e, 1.0), np.nan)
             out["max_force_N"] = float(np.max(self._peak_f))
             out["constraint_stiffness_N_per_m"] = (
                 float(np.nanmin(k)) if np.any(np.isfinite(k)) else float("nan")

@@ -138,3 +138,16 @@ def test_shared_mode_returns_the_6_24_torques_and_reports_stiffness() -> None:
     assert m["constraint_stiffness_N_per_m"] == pytest.approx(MoveConstrained.STIFFNESS)
     assert m["max_deviation_m"] == pytest.approx(np.abs(line.value(x)).max())
     assert skill.step(_ctx(obs), _obs(0.003, q)).status is SkillStatus.SUCCESS
+
+
+def test_shared_mode_reports_no_stiffness_without_a_push() -> None:
+    direction = np.array([1.0, -1.0, 2.0])
+    skill = MoveConstrained(
+        {"robot": "arm", "fixture": "line", "direction": tuple(direction), "mode": "shared"}
+    )
+    on = 0.1 * direction / np.linalg.norm(direction)
+    q = endobot.inverse_kinematics(on + np.array([1e-8, 0.0, 0.0]), 0.0)  # noise-level offset
+    obs = _obs(0.0, q)
+    skill.start(_ctx(obs))
+    skill.step(_ctx(obs), obs)
+    assert np.isnan(skill.metrics()["constraint_stiffness_N_per_m"])
