@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib.metadata
 import os
+from pathlib import Path
 
 import pytest
 
@@ -43,8 +44,9 @@ def project(pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch) -> pytes
     return pytester
 
 
-def _run(p: pytest.Pytester, *args: str) -> pytest.RunResult:
-    return p.runpytest("-p", "no:cacheprovider", *_plugin_args(), *args)
+def _run(p: pytest.Pytester, *args: str, subprocess: bool = False) -> pytest.RunResult:
+    run = p.runpytest_subprocess if subprocess else p.runpytest
+    return run("-p", "no:cacheprovider", *_plugin_args(), *args)
 
 
 def test_missing_golden_fails_and_says_how_to_record(project: pytest.Pytester) -> None:
@@ -118,3 +120,33 @@ def test_name(golden_trace):
 def test_update_option_is_in_the_help(pytester: pytest.Pytester) -> None:
     result = _run(pytester, "--help")
     result.stdout.fnmatch_lines(["*--update-golden*"])
+
+
+@pytest.mark.slow
+def test_procedure_run_through_the_runtime(
+    pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch, procedures_dir: Path
+) -> None:
+    """golden_trace.procedure runs a real procedure headless; a parameter change is caught."""
+    reach = procedures_dir.parent / "tests" / "procedures" / "reach.yaml"
+    if not reach.is_file():
+        pytest.skip("the runtime's test procedure is not there")
+    monkeypatch.delenv("REACH_SPEED", raising=False)
+    pytester.makeini("[pytest]\n")
+    pytester.makepyfile(
+        test_reach=f"""
+import os
+
+def test_reach(golden_trace):
+    speed = os.environ.get("REACH_SPEED")
+    sets = [f"speed={{speed}} mm/s"] if speed else []
+    golden_trace.procedure("reach", {str(reach)!r}, seed=0, sets=sets)
+"""
+    )
+    _run(pytester, "--update-golden", subprocess=True).assert_outcomes(passed=1)
+    golden = pytester.path / "tests" / "golden" / "reach.mcap"
+    assert 0 < golden.stat().st_size <= 2 * 1024 * 1024
+    _run(pytester, subprocess=True).assert_outcomes(passed=1)
+    monkeypatch.setenv("REACH_SPEED", "45")
+    result = _run(pytester, subprocess=True)
+    result.assert_outcomes(failed=1)
+    result.stdout.fnmatch_lines(["*traces diverge: first at tick *", "*channel*"])

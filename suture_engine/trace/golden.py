@@ -119,12 +119,17 @@ DEFAULT_TOLERANCES = ToleranceSpec(
         ("/ground_truth/knot", "*", EXACT),
         ("/qp/*", "*", EXACT),
     ),
-    ignore=(("/meta", "engine_version"), ("/qp/*", "solve_time_us")),
+    ignore=(
+        ("/meta", "engine_version"),
+        ("/meta", "procedure_file"),
+        ("/qp/*", "solve_time_us"),
+    ),
     default=Tolerance(abs=1e-9, rel=1e-9),
 )
 """Exact for events, transitions, operator events, metadata, knot and QP status;
 ``abs 1e-9 + rel 1e-9`` for other numbers (floating-point noise only). Ignores the
-engine version and the wall-clock QP solve time."""
+engine version, the procedure file's path (it depends on the checkout) and the
+wall-clock QP solve time."""
 
 
 @dataclass(frozen=True)

@@ -11,8 +11,10 @@ Installed with suture-engine (entry point ``pytest11``), it adds:
   and ``golden_max_bytes`` (default 2 MB: golden traces stay small).
 
 Example:
-    >>> def test_hold_matches_golden(golden_trace):
-    ...     golden_trace("hold", lambda out: run_procedure("hold.yaml", out / "trace.mcap"))
+    >>> def test_reach_matches_golden(golden_trace):
+    ...     golden_trace.procedure("reach", "procedures/reach.yaml", seed=0)
+    >>> def test_custom_producer(golden_trace):
+    ...     golden_trace("mine", lambda out: my_run(out / "trace.mcap"))
 
 The plugin imports nothing heavy until the fixture is used.
 """
@@ -145,6 +147,48 @@ class GoldenTrace:
                 pytrace=False,
             )
         return result
+
+    def procedure(
+        self,
+        name: str,
+        procedure_file: str | os.PathLike[str],
+        *,
+        seed: int = 0,
+        sets: Sequence[str] = (),
+        operator_file: str | os.PathLike[str] | None = None,
+        max_time_s: float = 300.0,
+        tolerances: ToleranceSpec | None = None,
+        topics: Sequence[str] | None = None,
+    ) -> GoldenResult | None:
+        """Runs a procedure file headless and checks its trace against the golden ``name``.
+
+        Args:
+            name: the golden trace's name.
+            procedure_file: the procedure (YAML).
+            seed: the random seed.
+            sets: ``name=value`` parameter overrides.
+            operator_file: a scripted operator file.
+            max_time_s: simulated time limit [s].
+            tolerances: the tolerances (default: ``DEFAULT_TOLERANCES``).
+            topics: topics or globs to compare (default: all).
+
+        Returns:
+            The comparison result, or ``None`` when the golden trace was re-recorded.
+        """
+        from suture_engine.runtime.run import run_procedure
+
+        def produce(out: Path) -> Path:
+            result = run_procedure(
+                Path(procedure_file),
+                seed=seed,
+                sets=sets,
+                out=out,
+                operator_file=None if operator_file is None else Path(operator_file),
+                max_time_s=max_time_s,
+            )
+            return result.trace
+
+        return self(name, produce, tolerances=tolerances, topics=topics)
 
 
 @pytest.fixture
