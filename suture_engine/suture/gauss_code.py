@@ -286,8 +286,8 @@ def _exact_div(p: Poly, q: Poly) -> Poly:
     return _trim(quot)
 
 
-def _int_det(matrix: list[list[int]]) -> int:
-    """Integer determinant by fraction-free (Bareiss) elimination."""
+def _int_det_small(matrix: list[list[int]]) -> int:
+    """Integer Bareiss determinant in plain Python (fastest for small matrices)."""
     m = [row[:] for row in matrix]
     n = len(m)
     if n == 0:
@@ -300,14 +300,41 @@ def _int_det(matrix: list[list[int]]) -> int:
                 return 0
             m[k], m[swap] = m[swap], m[k]
             sign = -sign
-        mkk = m[k][k]
+        mkk, row_k = m[k][k], m[k]
         for i in range(k + 1, n):
-            mik = m[i][k]
-            row_i, row_k = m[i], m[k]
+            row_i, mik = m[i], m[i][k]
             for j in range(k + 1, n):
                 row_i[j] = (mkk * row_i[j] - mik * row_k[j]) // prev
         prev = mkk
     return sign * m[n - 1][n - 1]
+
+
+def _int_det(matrix: list[list[int]]) -> int:
+    """Integer determinant by fraction-free (Bareiss) elimination.
+
+    Exact: the entries are Python integers held in a numpy object array, so
+    each elimination step is one vectorised update of the trailing block.
+    """
+    import numpy as np
+
+    n = len(matrix)
+    if n < 24:
+        return _int_det_small(matrix)
+    m = np.empty((n, n), dtype=object)
+    m[:, :] = [[int(x) for x in row] for row in matrix]
+    sign, prev = 1, 1
+    for k in range(n - 1):
+        if m[k, k] == 0:
+            nonzero = [r for r in range(k + 1, n) if m[r, k] != 0]
+            if not nonzero:
+                return 0
+            m[[k, nonzero[0]]] = m[[nonzero[0], k]]
+            sign = -sign
+        mkk = m[k, k]
+        block = mkk * m[k + 1 :, k + 1 :] - np.outer(m[k + 1 :, k], m[k, k + 1 :])
+        m[k + 1 :, k + 1 :] = block // prev
+        prev = mkk
+    return sign * int(m[n - 1, n - 1])
 
 
 def _det(matrix: list[list[Poly]]) -> Poly:
@@ -506,7 +533,20 @@ def vassiliev_v3(code: GaussCode) -> int:
     over_pos = np.array([pos[lab][0] for lab in labels])
     under_pos = np.array([pos[lab][1] for lab in labels])
     sign = np.array([code.signs[lab] for lab in labels])
-    tri = np.array(list(combinations(range(c), 3)))
+    # Only triples whose chords form a connected interleaving graph can match
+    # (each diagram of the formula is connected): a pair that interleaves
+    # plus a third chord interleaving one of the two.
+    lo = np.minimum(over_pos, under_pos)
+    hi = np.maximum(over_pos, under_pos)
+    inter = (lo[:, None] < lo[None, :]) & (lo[None, :] < hi[:, None]) & (hi[:, None] < hi[None, :])
+    inter = inter | inter.T
+    a = inter.astype(np.int8)
+    links = a[:, :, None] + a[:, None, :] + a[None, :, :]  # A_ij + A_ik + A_jk
+    idx = np.arange(c)
+    ordered = (idx[:, None, None] < idx[None, :, None]) & (idx[None, :, None] < idx[None, None, :])
+    tri = np.argwhere((links >= 2) & ordered)
+    if len(tri) == 0:
+        return 0
     # Six ends per triple: (position, local arrow 0..2, is_over)
     ends_pos = np.concatenate([over_pos[tri], under_pos[tri]], axis=1)
     ends_arrow = np.tile(np.arange(3), 2)[None, :].repeat(len(tri), axis=0)
