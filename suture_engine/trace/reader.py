@@ -400,12 +400,16 @@ class TraceReader:
 
                 records = zstandard.ZstdDecompressor().decompress(payload, max_output_size=usize)
             elif compression == "lz4":
-                import lz4.frame
-
+                try:
+                    import lz4.frame
+                except ImportError as exc:
+                    raise TraceIOError(
+                        self._name, "the trace has lz4 chunks: reading it needs the lz4 package"
+                    ) from exc
                 records = lz4.frame.decompress(payload)
             else:
                 raise self._corrupt(f"unsupported chunk compression {compression!r}", offset)
-        except TraceCorruptError:
+        except (TraceCorruptError, TraceIOError):
             raise
         except Exception as exc:  # the decompressors raise their own error types
             raise self._corrupt(f"chunk does not decompress ({compression}): {exc}", offset) from (

@@ -140,6 +140,11 @@ class TraceWriter:
             raise ValueError(f"compression must be zstd, lz4 or none, not {compression!r}")
         if chunk_size <= 0:
             raise ValueError(f"chunk_size must be positive, not {chunk_size}")
+        if compression == "lz4":
+            try:
+                import lz4.frame  # noqa: F401 - optional; mcap needs it for lz4 chunks
+            except ImportError as exc:
+                raise ValueError("lz4 compression needs the lz4 package (pip install lz4)") from exc
         self.path = Path(path)
         self._fsync = fsync
         self._include_wall_clock = include_wall_clock
