@@ -49,6 +49,8 @@ def procedure_schema() -> dict[str, Any]:
             for name, cls in skills.items()
         ]
         state["properties"]["skill"] = {"enum": sorted(skills), "type": "string"}
+    for model in defs.values():
+        _allow_expressions(model)
     root = refs[(ProcedureDocument, "validation")]
     return {
         "$schema": "https://json-schema.org/draft/2020-12/schema",
@@ -57,3 +59,31 @@ def procedure_schema() -> dict[str, Any]:
         **root,
         "$defs": defs,
     }
+
+
+EXPRESSION = {"type": "string", "pattern": r"\$\{.*\}"}
+"""A string holding a ``${...}`` expression (or an interpolation)."""
+
+
+def _allow_expressions(schema: Any) -> None:
+    """Let every property, array item and tuple item also be a ``${...}`` string."""
+    if not isinstance(schema, dict):
+        return
+    for key in ("properties",):
+        props = schema.get(key)
+        if isinstance(props, dict):
+            for name, sub in list(props.items()):
+                _allow_expressions(sub)
+                props[name] = {"anyOf": [sub, EXPRESSION]}
+    for key in ("items", "additionalProperties"):
+        sub = schema.get(key)
+        if isinstance(sub, dict):
+            _allow_expressions(sub)
+            schema[key] = {"anyOf": [sub, EXPRESSION]}
+    for key in ("prefixItems", "anyOf", "oneOf", "allOf"):
+        subs = schema.get(key)
+        if isinstance(subs, list):
+            for i, sub in enumerate(subs):
+                _allow_expressions(sub)
+                if key == "prefixItems":
+                    subs[i] = {"anyOf": [sub, EXPRESSION]}

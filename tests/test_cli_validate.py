@@ -1,0 +1,113 @@
+"""``suture validate``, ``suture schema`` and ``suture graph`` through the real command."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import jsonschema
+import pytest
+
+from suture_engine.language.source import load_yaml_file, load_yaml_text
+
+ROOT = Path(__file__).resolve().parent.parent
+BUNDLED = sorted((ROOT / "procedures").glob("*.yaml"))
+
+
+def _suture(*args: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run(
+        [sys.executable, "-m", "suture_engine.cli", *args],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+
+
+def test_bundled_procedures_validate() -> None:
+    result = _suture("validate", *[str(p.relative_to(ROOT)) for p in BUNDLED])
+    assert result.returncode == 0, result.stdout + result.stderr
+    assert result.stdout.count(": valid") == len(BUNDLED)
+
+
+def test_json_output_of_a_valid_file_is_an_empty_list() -> None:
+    result = _suture("validate", "--format", "json", "procedures/stitch.yaml")
+    assert result.returncode == 0 and json.loads(result.stdout) == []
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ("validate", "no/such/file.yaml"),
+        ("validate", "--format", "xml", "procedures/stitch.yaml"),
+        ("validate", "--set", "oops", "procedures/stitch.yaml"),
+        ("validate",),
+        ("graph", "procedures/stitch.yaml", "--format", "png"),
+        ("graph", "no/such/file.yaml"),
+    ],
+)
+def test_usage_and_io_errors_exit_2_without_traceback(args: tuple[str, ...]) -> None:
+    result = _suture(*args)
+    assert result.returncode == 2, result.stdout + result.stderr
+    assert "Traceback" not in result.stdout + result.stderr
+
+
+def test_set_overrides_parameters() -> None:
+    ok = _suture("validate", "--set", "algorithm=1", "procedures/square-knot.yaml")
+    assert ok.returncode == 0, ok.stdout
+    bad = _suture("validate", "--set", "algorithm=7", "procedures/square-knot.yaml")
+    assert bad.returncode == 1 and "out-of-bounds" in bad.stdout
+
+
+def test_schema_is_json_schema_and_accepts_the_bundled_procedures() -> None:
+    result = _suture("schema")
+    assert result.returncode == 0
+    schema = json.loads(result.stdout)
+    jsonschema.Draft202012Validator.check_schema(schema)
+    validator = jsonschema.Draft202012Validator(schema)
+    for path in BUNDLED:
+        errors = list(validator.iter_errors(load_yaml_file(path).data))
+        assert errors == [], f"{path.name}: {errors[0].message}"
+
+
+def test_schema_rejects_misspelt_keys_and_skill_parameters() -> None:
+    schema = json.loads(_suture("schema").stdout)
+    validator = jsonschema.Draft202012Validator(schema)
+    base = (ROOT / "procedures" / "stitch.yaml").read_text()
+    for broken in (
+        base.replace("initial:", "intial:"),
+        base.replace("pull_length:", "pul_length:"),
+    ):
+        data = load_yaml_text(broken, "x.yaml").data
+        assert list(validator.iter_errors(data)), "the schema accepted a misspelt key"
+
+
+def test_graph_mermaid_labels_states_with_skill_and_invariant() -> None:
+    result = _suture("graph", "procedures/stitch.yaml", "--format", "mermaid")
+    assert result.returncode == 0
+    text = result.stdout
+    assert text.startswith("stateDiagram")
+    assert "[*] --> s0" in text
+    assert "skill pass-needle" in text and "invariant tension <= 3 N" in text
+    assert "s1 --> s2: done" in text and "s2 --> [*]" in text
+    assert "Lock" in text
+
+
+def test_graph_square_knot_shows_the_two_simple_knots() -> None:
+    text = _suture("graph", "procedures/square-knot.yaml", "--format", "mermaid").stdout
+    assert text.count("use knot-algorithm-2") == 2
+    assert "mirror=True" in text and "mirror=False" in text
+
+
+def test_graph_dot() -> None:
+    result = _suture("graph", "procedures/secure-knot.yaml", "--format", "dot")
+    assert result.returncode == 0
+    assert result.stdout.startswith('digraph "secure-knot"')
+    assert "skill tension-regulate" in result.stdout and "->" in result.stdout
+
+
+def test_graph_of_an_invalid_procedure_exits_1() -> None:
+    result = _suture("graph", "tests/corpus/misspelt-state-key.yaml")
+    assert result.returncode == 1 and "unknown-key" in result.stderr
