@@ -7,7 +7,10 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 import pytest
+from hypothesis import given
+from hypothesis import strategies as st
 
 from suture_engine.trace.golden import (
     DEFAULT_TOLERANCES,
@@ -215,3 +218,28 @@ def test_tolerance_validation() -> None:
         Tolerance(abs=-1.0)
     assert Tolerance(abs=1e-3, rel=0.1).bound(-2.0) == pytest.approx(0.201)
     assert str(Tolerance()) == "exact"
+
+
+@given(
+    expected=st.floats(-1e6, 1e6, allow_nan=False),
+    scale=st.one_of(st.floats(0.0, 2.0), st.floats(0.99, 1.01)),
+    sign=st.sampled_from([-1.0, 1.0]),
+    atol=st.sampled_from([1e-9, 1e-3, 0.5]),
+    rtol=st.sampled_from([0.0, 1e-6, 1e-2]),
+)
+def test_tolerance_decision_agrees_with_numpy_isclose(
+    expected: float, scale: float, sign: float, atol: float, rtol: float
+) -> None:
+    """The comparison's verdict on one field is numpy.isclose(actual, expected)'s.
+
+    The actual value is placed at ``scale`` times the allowed deviation, so both
+    verdicts and the edge (scale near 1) are exercised.
+    """
+    actual = expected + sign * scale * (atol + rtol * abs(expected))
+    spec = ToleranceSpec(rules=(("*", "*", Tolerance(abs=atol, rel=rtol)),))
+
+    def msgs(value: float) -> list[TraceMessage]:
+        return [TraceMessage("/tension/estimated", 1000, {"tension_N": value})]
+
+    result = compare(msgs(expected), msgs(actual), spec)
+    assert result.ok == bool(np.isclose(actual, expected, rtol=rtol, atol=atol))
