@@ -422,6 +422,7 @@ def classify_knot(
     *,
     seed: int = 0,
     projections: int = 5,
+    spare: int = 3,
     max_attempts: int = 30,
     radius_factor: float = 10.0,
 ) -> KnotReport:
@@ -432,6 +433,8 @@ def classify_knot(
         seed: seed of the random projection directions (same seed, same
             answer).
         projections: number of valid projections that vote.
+        spare: extra valid projections drawn; the voters are the
+            ``projections`` whose diagrams reduce to the fewest crossings.
         max_attempts: directions tried at most (degenerate ones are skipped).
         radius_factor: closure sphere radius / curve radius.
 
@@ -446,23 +449,31 @@ def classify_knot(
         raise InvalidCenterline(tuple(np.shape(points)), "needs at least two distinct points")
     closed, n_sut = close_curve(pts, radius_factor=radius_factor)
     rng = np.random.default_rng(seed)
-    results: list[tuple[tuple[int, int, int], GaussCode, GaussCode, tuple, NDArray]] = []
+    # Project along random directions; keep the `projections` diagrams that
+    # reduce to the fewest crossings out of `projections + spare` valid ones
+    # (big diagrams cost O(c^3) and tell nothing more), then let them vote.
+    candidates: list[tuple[GaussCode, GaussCode, tuple[ProjectedCrossing, ...], NDArray]] = []
     for direction in _random_directions(rng, max_attempts):
         try:
             code, crossings = project_gauss_code(closed, direction, n_suture=n_sut)
         except _Degenerate:
             continue
-        reduced = simplify(code)
-        key = (
-            diagram_determinant(reduced),
-            vassiliev_v2(reduced),
-            vassiliev_v3(reduced),
-        )
-        results.append((key, code, reduced, crossings, direction))
-        if len(results) >= projections:
+        candidates.append((code, simplify(code), crossings, direction))
+        if len(candidates) >= projections + spare:
             break
-    if not results:
+    if not candidates:
         raise InvalidCenterline(tuple(np.shape(points)), "no generic projection found")
+    candidates.sort(key=lambda cand: cand[1].crossings)
+    results = [
+        (
+            (diagram_determinant(red), vassiliev_v2(red), vassiliev_v3(red)),
+            code,
+            red,
+            crossings,
+            direction,
+        )
+        for code, red, crossings, direction in candidates[:projections]
+    ]
     tally = Counter(r[0] for r in results)
     best_key, votes = tally.most_common(1)[0]
     winners = [r for r in results if r[0] == best_key]
