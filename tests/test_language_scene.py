@@ -1,0 +1,81 @@
+"""The scene model: Tables 7.1 and 7.2, the derived tension limit, and its checks."""
+
+from __future__ import annotations
+
+import pytest
+from pydantic import ValidationError
+
+from suture_engine.language.scene import (
+    GRAVITY,
+    KNOT_PULL_STRENGTH_KG,
+    SUTURE_DIAMETER_MM,
+    TISSUE_PULLOUT_N,
+    Scene,
+)
+
+
+def _scene(**changes: object) -> dict[str, object]:
+    data: dict[str, object] = {
+        "robots": {"endobot_1": {"tool": "stitcher"}, "endobot_2": {"tool": "hook-grasper"}},
+        "tissue": {"type": "skin", "wound": {"start": [0, 0, 0], "end": ["1 cm", 0, 0]}},
+        "suture": {"usp": "2-0", "length": "30 cm"},
+    }
+    data.update(changes)
+    return data
+
+
+def test_tables_as_printed_in_the_thesis() -> None:
+    assert KNOT_PULL_STRENGTH_KG == {
+        "0": 2.16,
+        "2-0": 1.44,
+        "3-0": 0.96,
+        "4-0": 0.60,
+        "5-0": 0.40,
+        "6-0": 0.20,
+    }
+    assert SUTURE_DIAMETER_MM["3-0"] == (0.20, 0.249)
+    assert TISSUE_PULLOUT_N == {"fat": 1.96, "muscle": 12.45, "skin": 17.85, "fascia": 36.98}
+
+
+@pytest.mark.parametrize(
+    ("usp", "tissue", "factor", "expected"),
+    [
+        ("2-0", "skin", 0.5, 0.5 * 1.44 * 9.80665),  # the suture is weaker (14.1 N < 17.85 N)
+        ("0", "fat", 1.0, 1.96),  # the tissue is weaker
+        ("6-0", "fascia", 0.8, 0.8 * 0.20 * 9.80665),
+    ],
+)
+def test_tension_limit_is_the_weaker_times_the_safety_factor(
+    usp: str, tissue: str, factor: float, expected: float
+) -> None:
+    data = _scene(
+        suture={"usp": usp, "length": "30 cm"},
+        tissue={"type": tissue, "wound": {"start": [0, 0, 0], "end": [0.01, 0, 0]}},
+        safety_factor=factor,
+    )
+    scene = Scene.model_validate(data)
+    assert scene.tension_limit == pytest.approx(expected)
+    assert scene.suture.knot_pull_strength == pytest.approx(KNOT_PULL_STRENGTH_KG[usp] * GRAVITY)
+
+
+def test_usp_zero_written_as_a_number() -> None:
+    assert Scene.model_validate(_scene(suture={"usp": 0, "length": 0.3})).suture.usp == "0"
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [
+        {"robots": {"endobot_1": {"tool": "stitcher"}}},
+        {"robots": {"a": {"tool": "laser"}, "b": {"tool": "grasper"}}},
+        {"suture": {"usp": "9-0", "length": 0.3}},
+        {"suture": {"usp": "2-0", "length": "30 deg"}},
+        {"tissue": {"type": "bone", "wound": {"start": [0, 0, 0], "end": [1, 0, 0]}}},
+        {"safety_factor": 1.5},
+        {"robots": {"a": {"tool": "stitcher", "joint_limits": {"yaw": ["10 deg", "-10 deg"]}},
+                    "b": {"tool": "grasper"}}},
+        {"colour": "blue"},
+    ],
+)  # fmt: skip
+def test_bad_scenes_are_rejected(changes: dict[str, object]) -> None:
+    with pytest.raises(ValidationError):
+        Scene.model_validate(_scene(**changes))
