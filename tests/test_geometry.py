@@ -13,7 +13,7 @@ import pytest
 from numpy.typing import NDArray
 
 from suture_engine.suture import curves
-from suture_engine.suture.geometry import knot_geometry, knot_region, straightness
+from suture_engine.suture.geometry import knot_geometry, knot_region, knot_summary, straightness
 from suture_engine.suture.topology import classify_knot
 
 UP = np.array([0.0, 0.0, 1.0])
@@ -112,3 +112,17 @@ def test_no_knot_no_centre() -> None:
     geo = knot_geometry(line, tissue_point=[0, 0, 0], tissue_normal=UP)
     assert geo.centre is None and not geo.seated and not geo.post_straight
     assert geo.to_dict()["centre"] is None
+
+
+def test_knot_summary_is_json_ready_and_complete() -> None:
+    import json
+
+    pts = 0.001 * curves.square_knot()  # millimetre-sized
+    summary = json.loads(
+        json.dumps(knot_summary(pts, tissue_point=[0, 0, -0.05], tissue_normal=UP))
+    )
+    assert summary["type"] == "square"
+    assert (summary["determinant"], summary["v2"], summary["v3"]) == (9, 2, 0)
+    for key in ("seated", "post_straight", "height", "straightness", "alexander", "writhe"):
+        assert key in summary
+    assert summary["seated"] is False  # 5 cm above the plane

@@ -22,7 +22,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from suture_engine.suture.topology import KnotReport, classify_knot, simplify_polyline
 
-__all__ = ["KnotGeometry", "knot_geometry", "knot_region", "straightness"]
+__all__ = ["KnotGeometry", "knot_geometry", "knot_region", "knot_summary", "straightness"]
 
 
 @dataclass(frozen=True)
@@ -193,3 +193,42 @@ def knot_geometry(
         loop_length=loop_length,
         loop_diameter=loop_diameter,
     )
+
+
+def knot_summary(
+    points: ArrayLike,
+    *,
+    tissue_point: ArrayLike,
+    tissue_normal: ArrayLike,
+    seat_tolerance: float = 1e-3,
+    straight_threshold: float = 0.9,
+    seed: int = 0,
+) -> dict[str, object]:
+    """The ``knot`` entry of a run summary: topology plus geometry, JSON-ready.
+
+    Args:
+        points: N x 3 suture centerline (ground truth) [m].
+        tissue_point: a point of the tissue plane [m].
+        tissue_normal: tissue normal (out of the tissue).
+        seat_tolerance: largest |height| of a seated knot [m].
+        straight_threshold: straightness above which a strand is straight.
+        seed: classifier seed.
+
+    Returns:
+        the classifier's fields (type, chirality, determinant, alexander,
+        v2, v3, crossings, writhe, votes, ...) and the geometry's (seated,
+        post_straight, height, straightness, loop_length, ...).
+    """
+    pts = simplify_polyline(points)
+    report = classify_knot(pts, seed=seed)
+    geo = knot_geometry(
+        pts,
+        tissue_point=tissue_point,
+        tissue_normal=tissue_normal,
+        seat_tolerance=seat_tolerance,
+        straight_threshold=straight_threshold,
+        report=report,
+    )
+    out = report.to_dict()
+    out.update(geo.to_dict())
+    return out
