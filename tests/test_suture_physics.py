@@ -15,7 +15,7 @@ import pytest
 
 from backends.pybullet.scene import build_scene, pull_ends
 from backends.pybullet.suture import InvalidSutureParams, SutureParams, knotted_path
-from backends.pybullet.tools import HOOK_MOUTH, Grasper, JawState, Stitcher
+from backends.pybullet.tools import HOOK_MOUTH, Grasper, JawState, Stitcher, ToolError
 
 
 def _classify(points):  # type: ignore[no-untyped-def]
@@ -171,14 +171,41 @@ def test_hook_catches_and_lifts_thread_only_when_extended(extend: bool) -> None:
 
 
 def test_stitcher_passes_needle_to_other_jaw() -> None:
+    """The needle opens with jaw 0 (-x); after a hand-over with closed jaws it opens with
+    jaw 1 (+x)."""
+    import pybullet as p
+
     scene = build_scene({"tissue": {}, "tools": {"st": "stitcher"}})
     try:
         st = scene.tools["st"]
         assert isinstance(st, Stitcher) and st.needle_holder == 0
+
+        def needle_x() -> float:
+            """Needle position along the tip's x, relative to the tip [m]."""
+            pos, _ = p.getBasePositionAndOrientation(st.needle_body, physicsClientId=st.client)
+            tip, orn = st.pose()
+            inv = p.invertTransform(tip, orn)
+            return float(p.multiplyTransforms(inv[0], inv[1], pos, (0, 0, 0, 1))[0][0])
+
+        def run(seconds: float) -> None:
+            for _ in range(int(seconds * 1000)):
+                scene.step()
+
+        run(0.3)
+        closed = needle_x()
+        st.open_jaws()
+        run(st.travel_time + 0.2)
+        assert needle_x() == pytest.approx(closed - st.open_width, abs=5e-4)
+        with pytest.raises(ToolError):
+            st.pass_needle()
+        st.close_jaws()
+        run(st.travel_time + 0.2)
         st.pass_needle()
-        for _ in range(int(st.travel_time * 1000) + 2):
-            scene.step()
+        run(st.travel_time + 0.1)
         assert st.needle_holder == 1 and not st.passing
+        st.open_jaws()
+        run(st.travel_time + 0.2)
+        assert needle_x() == pytest.approx(closed + st.open_width, abs=5e-4)
     finally:
         scene.close()
 

@@ -1,10 +1,21 @@
 """Assemble the surgical scene in a headless PyBullet world, and scripted tool motions.
 
-:func:`build_scene` takes a plain dict (the scene model's fields; see :data:`DEFAULT_SCENE`)
-and a seed and returns a :class:`Scene`: the physics client at 1 kHz (``PHYSICS_RATE``), the
-suture, the tissue pad and the tool tips. Robots are not built here yet: the tools are
-driven kinematically (scripted tests), and ``Tool.mount`` attaches them to a robot's tool
-link once a robot exists. All user-facing quantities are SI at real scale.
+:func:`build_scene` takes either the scene model of the procedure language
+(:class:`suture_engine.language.scene.Scene`) or a plain dict (see :data:`DEFAULT_SCENE`)
+and a seed, and returns a :class:`Scene`: the physics client at 1 kHz (``PHYSICS_RATE``),
+the suture, the tissue pad and the tool tips. All user-facing quantities are SI at real
+scale.
+
+* From the **model**: each EndoBot (``EndoBotSim``) stands at its calibrated base pose
+  (Fig. 4.31) with its tool mounted on its tool link (``grasper``, ``hook-grasper``,
+  ``bent-tip-grasper``, ``stitcher``); the tissue's stitch runs from the point named
+  ``entry`` (or the first ``entry_*``) to ``exit`` (or the first ``exit_*``), or across the
+  wound's middle if none is named. With a stitcher the needle starts locked in its jaw and
+  the thread hangs from it; otherwise the thread starts stitched through the tissue, its
+  tails lying on the surface. Until a controller drives them, :meth:`Scene.step` holds the
+  robots at their start joints (gravity compensation (3.41) plus a PD term).
+* From a **dict**: no robots; graspers at the thread's ends, driven kinematically (scripted
+  tests), and a thread laid straight or along a hand-built knotted curve.
 
 :func:`pull_ends` is the scripted (hand-written, not skill-driven) tightening used by the
 knot tests: two graspers hold the thread's ends and move apart until both transmit the
@@ -73,6 +84,13 @@ class SceneError(SutureError):
         self.valid = valid or []
 
 
+_KP = np.array([40.0, 40.0, 2.0, 400.0])
+"""Holding stiffness per joint [N*m/rad, N*m/rad, N*m/rad, N/m]."""
+_KD = np.array([2.0, 2.0, 0.05, 20.0])
+"""Holding damping per joint [N*m*s/rad, N*m*s/rad, N*m*s/rad, N*s/m]."""
+_Q0 = (0.0, 0.0, 0.0, 0.08)
+"""Start joints of the robots [rad, rad, rad, m]."""
+
 _KNOTS: dict[str, tuple[bool, ...]] = {
     "overhand": (False,),
     "square": (False, True),
@@ -100,11 +118,21 @@ class Scene:
     tools: dict[str, Tool] = field(default_factory=dict)
     time: float = 0.0
     rng: np.random.Generator = field(default_factory=np.random.default_rng)
+    robots: dict[str, Any] = field(default_factory=dict)
+    hold: dict[str, tuple[float, float, float, float]] = field(default_factory=dict)
+    torques: dict[str, Any] = field(default_factory=dict)
 
     def step(self) -> None:
-        """Advance the world by one physics step (1 / ``PHYSICS_RATE`` [s])."""
+        """Advance the world by one physics step (1 / ``PHYSICS_RATE`` [s]).
+
+        Each robot gets the joint torques in :attr:`torques` [N*m, N*m, N*m, N] if given,
+        else it is held at :attr:`hold` (its start joints) by gravity compensation plus PD.
+        """
         import pybullet as p
 
+        for name, robot in self.robots.items():
+            tau = self.torques.get(name)
+            robot.apply(tau if tau is not None else self._hold_torque(name, robot))
         for tool in self.tools.values():
             tool.step()
         self.suture.pre_step()
@@ -112,6 +140,15 @@ class Scene:
             self.tissue.pre_step()
         p.stepSimulation(physicsClientId=self.client)
         self.time += 1.0 / PHYSICS_RATE
+
+    def _hold_torque(self, name: str, robot: Any) -> Any:
+        from suture_engine.robot.endobot import gravity_vector
+
+        state = robot.true_state()
+        q = np.asarray(state.q, dtype=float)
+        qd = np.asarray(state.qd, dtype=float)
+        target = np.asarray(self.hold[name], dtype=float)
+        return gravity_vector(q, robot.model_params) + _KP * (target - q) - _KD * qd
 
     def close(self) -> None:
         """Disconnect the physics client."""
@@ -127,11 +164,12 @@ def _vec(cfg: dict[str, Any], key: str, where: str) -> tuple[float, float, float
     return (float(v[0]), float(v[1]), float(v[2]))
 
 
-def build_scene(config: dict[str, Any] | None = None, seed: int = 0) -> Scene:
-    """Build the scene headless from a plain dict.
+def build_scene(config: Any = None, seed: int = 0) -> Scene:
+    """Build the scene headless from the scene model or a plain dict.
 
     Args:
-        config: fields as in :data:`DEFAULT_SCENE` (missing sections take the defaults).
+        config: a :class:`suture_engine.language.scene.Scene` model, or a dict with the
+            fields of :data:`DEFAULT_SCENE` (missing sections take the defaults).
             ``suture.knot`` is None, ``"overhand"``, ``"square"`` or ``"granny"``: a knot laid
             by construction along a hand-built curve (:func:`knotted_path`).
         seed: seeds the scene's random generator (sensor noise, perturbations); the physics
@@ -145,6 +183,8 @@ def build_scene(config: dict[str, Any] | None = None, seed: int = 0) -> Scene:
     """
     import pybullet as p
 
+    if config is not None and hasattr(config, "robots"):
+        return _from_model(config, seed)
     cfg = copy.deepcopy(DEFAULT_SCENE)
     for key, value in (config or {}).items():
         if key not in cfg:
@@ -190,6 +230,110 @@ def build_scene(config: dict[str, Any] | None = None, seed: int = 0) -> Scene:
             scene.tools[name] = Stitcher.create(client, name, pos, needle_body=suture.needle_body)
         else:
             raise SceneError(f"tools.{name}", kind, ["grasper", "stitcher"])
+    return scene
+
+
+def _quaternion(rpy: Any) -> tuple[float, float, float, float]:
+    """(x, y, z, w) of roll-pitch-yaw about fixed x, y, z [rad]."""
+    import pybullet as p
+
+    q = p.getQuaternionFromEuler([float(a) for a in rpy])
+    return (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+
+
+def _stitch_points(tissue: Any) -> tuple[Any, Any]:
+    """Entry and exit points of the first bite [m]: named, or across the wound's middle."""
+    points = dict(tissue.points)
+    entries = sorted(k for k in points if k == "entry" or k.startswith("entry_"))
+    exits = sorted(k for k in points if k == "exit" or k.startswith("exit_"))
+    if entries and exits:
+        return np.asarray(points[entries[0]], float), np.asarray(points[exits[0]], float)
+    a, b = np.asarray(tissue.wound.start, float), np.asarray(tissue.wound.end, float)
+    n = np.asarray(tissue.normal, float)
+    across = np.cross(n, b - a)
+    across = across / np.linalg.norm(across) * 4e-3
+    mid = (a + b) / 2
+    return mid - across, mid + across
+
+
+def _from_model(model: Any, seed: int) -> Scene:
+    """Build the scene from the language's scene model (robots, tissue, suture)."""
+    import pybullet as p
+
+    from backends.pybullet.robot import EndoBotSim
+    from backends.pybullet.tools import BentTipGrasper
+
+    client = p.connect(p.DIRECT)
+    configure_physics(client)
+    robots: dict[str, Any] = {}
+    hold: dict[str, tuple[float, float, float, float]] = {}
+    for i, (name, spec) in enumerate(sorted(model.robots.items())):
+        robots[name] = EndoBotSim(
+            client,
+            base_position=tuple(spec.base.position),
+            base_orientation=_quaternion(spec.base.rpy),
+            q0=_Q0,
+            seed=seed * 1000 + i,
+        )
+        hold[name] = _Q0
+    configure_physics(client)  # the robot sets its own time step; keep the suture's settings
+
+    entry, exit_ = _stitch_points(model.tissue)
+    normal = np.asarray(model.tissue.normal, float)
+    normal = normal / np.linalg.norm(normal)
+    tissue = Tissue.create(
+        client,
+        center=tuple((np.asarray(model.tissue.wound.start) + model.tissue.wound.end) / 2),
+        entry=tuple(entry),
+        exit=tuple(exit_),
+        normal=tuple(normal),
+        size=(0.08, 0.08, 0.01),
+    )
+    params = SutureParams(
+        length=float(model.suture.length),
+        n_segments=max(40, round(model.suture.length / 7.5e-3)),
+        diameter=float(model.suture.diameter),
+    )
+    stitchers = [n for n, spec in sorted(model.robots.items()) if spec.tool == "stitcher"]
+    lift = normal * (params.collision_radius + 0.5e-3)
+    if stitchers:
+        tip, _ = robots[stitchers[0]].true_tool_pose()
+        tip = np.asarray(tip, float)
+        back = np.cross(normal, exit_ - entry)
+        back = back / np.linalg.norm(back)
+        path = np.vstack([tip + back * params.length, tip])
+    else:
+        along = (exit_ - entry) / np.linalg.norm(exit_ - entry)
+        tail = (params.length - 0.02) / 2
+        path = np.vstack(
+            [
+                entry + lift - along * tail,
+                entry + lift - along * 1e-3,
+                tissue.channel,
+                exit_ + lift + along * 1e-3,
+                exit_ + lift + along * tail,
+            ]
+        )
+    suture = Suture.create(client, path, params)
+    if not stitchers:
+        tissue.thread(suture)
+    scene = Scene(client=client, seed=seed, suture=suture, tissue=tissue, robots=robots, hold=hold)
+    scene.rng = np.random.default_rng(seed)
+    for name, spec in sorted(model.robots.items()):
+        robot = robots[name]
+        tip, orn = robot.true_tool_pose()
+        pos = (float(tip[0]), float(tip[1]), float(tip[2]))
+        quat = (float(orn[0]), float(orn[1]), float(orn[2]), float(orn[3]))
+        tool: Tool
+        if spec.tool == "stitcher":
+            tool = Stitcher.create(client, name, pos, quat, needle_body=suture.needle_body)
+        elif spec.tool == "bent-tip-grasper":
+            tool = BentTipGrasper.create(client, name, pos, quat, suture=suture, hook=False)
+        else:
+            hook = spec.tool == "hook-grasper"
+            tool = Grasper.create(client, name, pos, quat, suture=suture, hook=hook)
+        tool.mount(robot.body_id, robot.tool_link)
+        scene.tools[name] = tool
     return scene
 
 

@@ -195,6 +195,25 @@ class Tool:
 
     def step(self) -> None:
         """Advance the tool's own motions by one physics step (default: nothing)."""
+        self._cancel_weight()
+
+    def _parts(self) -> list[int]:
+        """Every body of the tool tip."""
+        return [self.body]
+
+    def _cancel_weight(self) -> None:
+        """Hold up the tool tip's own weight: the robot model already carries its tool."""
+        import pybullet as p
+
+        c = self.client
+        for b in self._parts():
+            if b < 0:
+                continue
+            mass = p.getDynamicsInfo(b, -1, physicsClientId=c)[0]
+            pos, _ = p.getBasePositionAndOrientation(b, physicsClientId=c)
+            p.applyExternalForce(
+                b, -1, [0.0, 0.0, mass * 9.81], pos, p.WORLD_FRAME, physicsClientId=c
+            )
 
     def _attach(self, body: int, other: int) -> int:
         """A fixed constraint from ``body`` to ``other`` at their current relative pose."""
@@ -326,8 +345,12 @@ class Grasper(Tool):
         i = int(np.argmin(d))
         return i if d[i] <= self.reach else -1
 
+    def _parts(self) -> list[int]:
+        return [self.body, self.hook_body]
+
     def step(self) -> None:
         """Advance jaw travel and hook motion by one physics step."""
+        self._cancel_weight()
         if self.state in (JawState.CLOSING, JawState.OPENING):
             self._timer -= self.dt
             if self._timer <= 0.0:
@@ -483,17 +506,27 @@ class BentTipGrasper(Grasper):
 class Stitcher(Tool):
     """EndoStitch-like stitcher: two jaws, the needle locked in one (4.1, Fig. 4.3).
 
+    The jaws open apart along the tip's x and close together, each taking ``travel_time``;
+    with the jaws closed, :meth:`pass_needle` hands the needle to the other jaw (after
+    ``travel_time``), which then carries it when the jaws open.
+
     Attributes:
-        gap: distance between the two jaws along the tip's x [m].
-        travel_time: time for the needle hand-over [s].
-        needle_holder: index (0 or 1) of the jaw that holds the needle.
+        gap: distance between the closed jaws along the tip's x [m].
+        open_width: how far each jaw moves out when opening [m].
+        travel_time: jaw travel time and needle hand-over time [s].
+        needle_holder: index (0: the -x jaw, 1: the +x jaw) of the jaw holding the needle.
+        opening: jaw opening, 0 closed to 1 open [-].
     """
 
     gap: float = 8e-3
+    open_width: float = 4e-3
     travel_time: float = 0.2
     needle_holder: int = 0
+    opening: float = 0.0
     jaws: list[int] = field(default_factory=list)
     needle_body: int = -1
+    _target: float = 0.0
+    _jaw_drives: list[int] = field(default_factory=list)
     _lock: int = -1
     _timer: float = -1.0
 
@@ -507,7 +540,7 @@ class Stitcher(Tool):
         needle_body: int = -1,
         **kwargs: float,
     ) -> Stitcher:
-        """Add a stitcher to the world, the needle locked in jaw 0.
+        """Add a stitcher to the world, jaws closed, the needle locked in jaw 0.
 
         Args:
             client: PyBullet physics client id.
@@ -515,38 +548,66 @@ class Stitcher(Tool):
             position: tip centre (between the jaws), world frame [m].
             orientation: tip orientation; the jaws sit at ±``gap``/2 along its x.
             needle_body: body id of the needle (``Suture.needle_body``); -1 for none.
-            **kwargs: ``gap`` [m], ``travel_time`` [s], ``drive_force`` [N].
+            **kwargs: ``gap`` [m], ``open_width`` [m], ``travel_time`` [s],
+                ``drive_force`` [N].
         """
         import pybullet as p
 
         self = cls(client=client, name=name, needle_body=needle_body, **kwargs)  # type: ignore[arg-type]
         self._make_body((self.gap / 2 + 1e-3, 1e-3, 1e-3), 0.02, [0.5, 0.5, 0.55, 1.0])
         self._drive_to_world(position, orientation)
+        half = [1e-3, 1.5e-3, 3e-3]
+        col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=client)
+        vis = p.createVisualShape(
+            p.GEOM_BOX, halfExtents=half, rgbaColor=[0.4, 0.4, 0.45, 1.0], physicsClientId=client
+        )
         for side in (-1, 1):
-            col = p.createCollisionShape(
-                p.GEOM_BOX, halfExtents=[1e-3, 1.5e-3, 3e-3], physicsClientId=client
-            )
-            jaw = p.createMultiBody(0.005, col, col, [0, 0, 0], physicsClientId=client)
+            offset = [side * self.gap / 2, 0.0, 3e-3]
+            pos, orn = p.multiplyTransforms(position, orientation, offset, _IDENTITY)
+            jaw = p.createMultiBody(0.005, col, vis, pos, orn, physicsClientId=client)
             p.setCollisionFilterGroupMask(jaw, -1, 0, 0, physicsClientId=client)
-            cons = p.createConstraint(
-                self.body,
-                -1,
-                jaw,
-                -1,
-                p.JOINT_FIXED,
-                [0, 0, 0],
-                [side * self.gap / 2, 0, 3e-3],
-                [0, 0, 0],
-                physicsClientId=client,
-            )
-            p.changeConstraint(cons, maxForce=self.drive_force, physicsClientId=client)
             self.jaws.append(jaw)
-        p.stepSimulation(physicsClientId=client)
+            self._jaw_drives.append(-1)
+        self._drive_jaws()
         if needle_body >= 0:
             jaw_pos, jaw_orn = p.getBasePositionAndOrientation(self.jaws[0], physicsClientId=client)
             p.resetBasePositionAndOrientation(needle_body, jaw_pos, jaw_orn, physicsClientId=client)
             self._lock = self._attach(self.jaws[0], needle_body)
         return self
+
+    def _parts(self) -> list[int]:
+        return [self.body, *self.jaws]
+
+    def _drive_jaws(self) -> None:
+        """(Re)build the constraints holding the jaws at the current opening."""
+        import pybullet as p
+
+        c = self.client
+        for k, side in enumerate((-1, 1)):
+            if self._jaw_drives[k] >= 0:
+                p.removeConstraint(self._jaw_drives[k], physicsClientId=c)
+            x = side * (self.gap / 2 + self.opening * self.open_width)
+            cons = p.createConstraint(
+                self.body,
+                -1,
+                self.jaws[k],
+                -1,
+                p.JOINT_FIXED,
+                [0, 0, 0],
+                [x, 0.0, 3e-3],
+                [0, 0, 0],
+                physicsClientId=c,
+            )
+            p.changeConstraint(cons, maxForce=self.drive_force, physicsClientId=c)
+            self._jaw_drives[k] = cons
+
+    def open_jaws(self) -> None:
+        """Start opening the jaws (takes ``travel_time``)."""
+        self._target = 1.0
+
+    def close_jaws(self) -> None:
+        """Start closing the jaws (takes ``travel_time``)."""
+        self._target = 0.0
 
     @property
     def passing(self) -> bool:
@@ -557,18 +618,27 @@ class Stitcher(Tool):
         """Start handing the needle to the other jaw (takes ``travel_time``).
 
         Raises:
-            ToolError: there is no needle, or a hand-over is already under way.
+            ToolError: there is no needle, the jaws are not closed, or a hand-over is
+                already under way.
         """
         if self.needle_body < 0:
             raise ToolError(self.name, "pass the needle", "it holds no needle")
+        if self.opening > 0.0 or self._target > 0.0:
+            raise ToolError(self.name, "pass the needle", "the jaws are not closed")
         if self.passing:
             raise ToolError(self.name, "pass the needle", "a hand-over is under way")
         self._timer = self.travel_time
 
     def step(self) -> None:
-        """Advance a needle hand-over by one physics step."""
+        """Advance jaw travel and a needle hand-over by one physics step."""
         import pybullet as p
 
+        self._cancel_weight()
+        if self.opening != self._target:
+            rate = self.dt / self.travel_time
+            delta = self._target - self.opening
+            self.opening += max(-rate, min(rate, delta))
+            self._drive_jaws()
         if not self.passing:
             return
         self._timer -= self.dt
