@@ -135,6 +135,8 @@ def parse_unit(text: str) -> tuple[float, Dimension]:
     factor, dim = 1.0, [0, 0, 0, 0]
     pos, sign = 0, 1
     compact = text.replace(" ", "")
+    if compact.startswith("1/") and len(compact) > 2:  # "1/s"
+        pos, sign = 2, -1
     while pos < len(compact):
         match = _FACTOR_RE.match(compact, pos)
         if match is None or match.group(1) not in _UNITS:
