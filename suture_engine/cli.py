@@ -194,6 +194,33 @@ def diff(
     raise typer.Exit(diff_command(expected, actual, topics=topic))
 
 
+@app.command()
+def knot(
+    file: Annotated[Path, typer.Argument(help="Centerline: .npy, .json or text (N x 3).")],
+    json_: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
+    seed: Annotated[int, typer.Option(help="Seed of the projection directions.")] = 0,
+    tissue_point: Annotated[
+        tuple[float, float, float] | None,
+        typer.Option(help="A point of the tissue plane [m] (adds seated/post straight)."),
+    ] = None,
+    tissue_normal: Annotated[
+        tuple[float, float, float] | None, typer.Option(help="Tissue normal.")
+    ] = None,
+) -> None:
+    """Classify the knot held by a suture centerline (type, invariants, geometry)."""
+    from suture_engine.suture.cli_knot import knot_command
+
+    raise typer.Exit(
+        knot_command(
+            file,
+            as_json=json_,
+            seed=seed,
+            tissue_point=list(tissue_point) if tissue_point else None,
+            tissue_normal=list(tissue_normal) if tissue_normal else None,
+        )
+    )
+
+
 def main() -> None:
     """Entry point of the ``suture`` console script."""
     app()
