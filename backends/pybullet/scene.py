@@ -192,45 +192,53 @@ def build_scene(config: Any = None, seed: int = 0) -> Scene:
         # ``tools`` is replaced as a whole; the other sections are merged field by field.
         cfg[key] = dict(value) if key == "tools" else {**cfg[key], **value}
     client = p.connect(p.DIRECT)
-    configure_physics(client)
+    try:
+        configure_physics(client)
 
-    tissue_cfg = cfg["tissue"]
-    tissue = None
-    if tissue_cfg:
-        tissue = Tissue.create(
-            client,
-            center=_vec(tissue_cfg, "center", "tissue"),
-            entry=_vec(tissue_cfg, "entry", "tissue"),
-            exit=_vec(tissue_cfg, "exit", "tissue"),
-            normal=_vec(tissue_cfg, "normal", "tissue"),
-            depth=float(tissue_cfg.get("depth", 0.003)),
-        )
+        tissue_cfg = cfg["tissue"]
+        tissue = None
+        if tissue_cfg:
+            tissue = Tissue.create(
+                client,
+                center=_vec(tissue_cfg, "center", "tissue"),
+                entry=_vec(tissue_cfg, "entry", "tissue"),
+                exit=_vec(tissue_cfg, "exit", "tissue"),
+                normal=_vec(tissue_cfg, "normal", "tissue"),
+                depth=float(tissue_cfg.get("depth", 0.003)),
+            )
 
-    sut = cfg["suture"]
-    length = float(sut["length"])
-    params = SutureParams(length=length, n_segments=int(sut["segments"]))
-    start = np.array([-length / 2, -0.03, 0.02])
-    knot = sut.get("knot")
-    if knot is None:
-        path = straight_path(tuple(start), (1.0, 0.0, 0.0), length)
-    elif knot in _KNOTS:
-        path = knotted_path(_KNOTS[knot], (0.0, -0.03, 0.03), float(sut["knot_scale"]), length)
-    else:
-        raise SceneError("suture.knot", knot, sorted(_KNOTS))
-    suture = Suture.create(client, path, params)
-    scene = Scene(client=client, seed=seed, suture=suture, tissue=tissue)
-    scene.rng = np.random.default_rng(seed)
-
-    ends = suture.centerline()[[0, -1]]
-    for (name, kind), end in zip(cfg["tools"].items(), ends, strict=False):
-        pos = (float(end[0]), float(end[1]), float(end[2]))
-        if kind == "grasper":
-            scene.tools[name] = Grasper.create(client, name, pos, suture=suture)
-        elif kind == "stitcher":
-            scene.tools[name] = Stitcher.create(client, name, pos, needle_body=suture.needle_body)
+        sut = cfg["suture"]
+        length = float(sut["length"])
+        params = SutureParams(length=length, n_segments=int(sut["segments"]))
+        start = np.array([-length / 2, -0.03, 0.02])
+        knot = sut.get("knot")
+        if knot is None:
+            path = straight_path(tuple(start), (1.0, 0.0, 0.0), length)
+        elif knot in _KNOTS:
+            path = knotted_path(_KNOTS[knot], (0.0, -0.03, 0.03), float(sut["knot_scale"]), length)
         else:
-            raise SceneError(f"tools.{name}", kind, ["grasper", "stitcher"])
-    return scene
+            raise SceneError("suture.knot", knot, sorted(_KNOTS))
+        suture = Suture.create(client, path, params)
+        scene = Scene(client=client, seed=seed, suture=suture, tissue=tissue)
+        scene.rng = np.random.default_rng(seed)
+
+        ends = suture.centerline()[[0, -1]]
+        if len(cfg["tools"]) > 2:
+            raise SceneError("tools", sorted(cfg["tools"]), ["at most two tools, one per end"])
+        for (name, kind), end in zip(cfg["tools"].items(), ends, strict=False):
+            pos = (float(end[0]), float(end[1]), float(end[2]))
+            if kind == "grasper":
+                scene.tools[name] = Grasper.create(client, name, pos, suture=suture)
+            elif kind == "stitcher":
+                scene.tools[name] = Stitcher.create(
+                    client, name, pos, needle_body=suture.needle_body
+                )
+            else:
+                raise SceneError(f"tools.{name}", kind, ["grasper", "stitcher"])
+        return scene
+    except SutureError:
+        p.disconnect(physicsClientId=client)
+        raise
 
 
 def _quaternion(rpy: Any) -> tuple[float, float, float, float]:
