@@ -533,17 +533,21 @@ class Suture:
         """Tension at each joint between capsules (ground truth) [N].
 
         Returns:
-            (n_segments - 1) array: the magnitude of the force the joint constraint applied in
-            the last step (``getConstraintState``).
+            (n_segments - 1) array: the force the joint constraint applied in the last step
+            (``getConstraintState``), projected on the thread's local direction (from capsule
+            ``i`` to capsule ``i + 1``), clipped at zero: a thread pulls, it does not push.
         """
         import pybullet as p
 
-        return np.array(
-            [
-                float(np.linalg.norm(p.getConstraintState(c, physicsClientId=self.client)))
-                for c in self.links
-            ]
+        pos, _ = self._poses()
+        u = np.diff(pos, axis=0)
+        u /= np.linalg.norm(u, axis=1, keepdims=True)
+        force = np.array(
+            [p.getConstraintState(c, physicsClientId=self.client)[:3] for c in self.links]
         )
+        # PyBullet reports the joint force acting on the child (capsule i + 1).
+        axial: FloatArray = np.clip(-np.einsum("ij,ij->i", force, u), 0.0, None)
+        return axial
 
     def contacts(self) -> list[SutureContact]:
         """Every contact point of the thread in the last step (ground truth)."""
