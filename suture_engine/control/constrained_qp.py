@@ -225,6 +225,7 @@ class ConstrainedQP:
             names.append("extension_rate")
         self.row_names: tuple[str, ...] = tuple(names)
         self._eq_set = frozenset(eq_rows)
+        self._row_items = tuple(enumerate(names))
 
         # Preallocated buffers, and views into them, filled in place every tick.
         w = self.weights
@@ -445,13 +446,13 @@ class ConstrainedQP:
 
     def _finish(self, status: str, iters: int, solve_time: float, z: Array | None) -> QPResult:
         self.solves += 1
-        ok = status == "solved" and z is not None and bool(np.isfinite(z).all())
+        zl = z.tolist() if z is not None else []
+        ok = status == "solved" and len(zl) == self.n and all(map(math.isfinite, zl))
         if ok:
-            assert z is not None
-            self._qdot[:] = z[:_N]
+            self._qdot[:] = zl[:_N]
             self.consecutive_failures = 0
-            slack = float(np.abs(z[_N:]).max()) if self._m_soft else 0.0
-            active = self._active(z)
+            slack = max(map(abs, zl[_N:])) if self._m_soft else 0.0
+            active = self._active(zl)
         else:
             self.failures += 1
             self.consecutive_failures += 1
@@ -467,27 +468,25 @@ class ConstrainedQP:
             slack_max=slack,
         )
 
-    def _active(self, z: Array) -> tuple[str, ...]:
-        # A row is active when |A z - bound| <= 2 eps_abs + 1e-4 |bound| (plain floats:
-        # for ten rows this is faster than a dozen small numpy calls).
-        ax = self._ax
-        ax[:_N] = z[:_N]
-        if self._m_soft:
-            np.matmul(self._G, z[:_N], out=ax[_N:])
-            ax[_N:] += z[_N:]
-        out = []
-        names = self.row_names
-        eq = self._eq_set
+    def _active(self, z: list[float]) -> tuple[str, ...]:
+        # A row is active when |A z - bound| <= 2 eps_abs + 1e-4 |bound|; equality fixture
+        # rows always are. Plain floats: for ten rows this beats a dozen numpy calls.
         tol = self._act_tol
-        for i, (a, lo, hi) in enumerate(
-            zip(ax.tolist(), self._l.tolist(), self._u.tolist(), strict=True)
-        ):
-            if (
-                i in eq
-                or abs(a - hi) <= tol + 1e-4 * abs(hi)
-                or abs(a - lo) <= tol + 1e-4 * abs(lo)
-            ):
-                out.append(names[i])
+        lo_l, hi_l = self._l.tolist(), self._u.tolist()
+        g = self._G.tolist() if self._m_soft else []
+        out = []
+        for i, name in self._row_items:
+            if i in self._eq_set:
+                out.append(name)
+                continue
+            if i < _N:
+                a = z[i]
+            else:
+                row = g[i - _N]
+                a = row[0] * z[0] + row[1] * z[1] + row[2] * z[2] + row[3] * z[3] + z[i]
+            hi, lo = hi_l[i], lo_l[i]
+            if abs(a - hi) <= tol + 1e-4 * abs(hi) or abs(a - lo) <= tol + 1e-4 * abs(lo):
+                out.append(name)
         return tuple(out)
 
     # ------------------------------------------------------------------ introspection
