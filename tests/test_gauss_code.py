@@ -99,6 +99,8 @@ def vassiliev_from_jones(jones: dict[int, int]) -> tuple[int, int]:
 
 def seifert_oracle(pd: list[tuple[int, int, int, int]]) -> tuple[tuple[int, ...], int, int]:
     """(normalised Alexander polynomial, determinant, writhe) computed by spherogram."""
+    if not pd:
+        return (1,), 1, 0  # a diagram without crossings is the unknot
     link = spherogram.Link(pd)
     v = sympy.Matrix(link.seifert_matrix())
     if v.shape[0] == 0:
@@ -256,3 +258,42 @@ def test_format_polynomial() -> None:
     assert format_polynomial((1, -1, 1)) == "t^2 - t + 1"
     assert format_polynomial((-1, 3, -1)) == "-t^2 + 3t - 1"
     assert format_polynomial((1,)) == "1"
+
+
+def _random_polygon_codes(count: int, seed: int) -> list[GaussCode]:
+    """Diagrams of random closed polygons (not braid closures), at most 12 crossings."""
+    import numpy as np
+
+    from suture_engine.suture.topology import project_gauss_code
+
+    rng = np.random.default_rng(seed)
+    codes: list[GaussCode] = []
+    while len(codes) < count:
+        poly = rng.normal(size=(int(rng.integers(8, 16)), 3))
+        try:
+            code, _ = project_gauss_code(poly, rng.normal(size=3))
+        except ValueError:
+            continue
+        code = simplify(code)
+        if 0 < code.crossings <= 12:
+            codes.append(code.rotated(int(rng.integers(0, 1 + len(code.passages)))))
+    return codes
+
+
+def _check_against_oracles(code: GaussCode) -> None:
+    pd = code.to_pd()
+    assert (vassiliev_v2(code), vassiliev_v3(code)) == vassiliev_from_jones(jones_from_pd(pd))
+    alex, det, _ = seifert_oracle(pd)
+    assert alexander_polynomial(code) == alex
+    assert diagram_determinant(code) == det
+
+
+def test_random_polygon_diagrams_match_the_oracles() -> None:
+    for code in _random_polygon_codes(25, seed=11):
+        _check_against_oracles(code)
+
+
+@pytest.mark.slow
+def test_many_random_polygon_diagrams_match_the_oracles() -> None:
+    for code in _random_polygon_codes(400, seed=12):
+        _check_against_oracles(code)
