@@ -92,6 +92,54 @@ class OperatorModel:
     roll_stiffness: float = 0.5
     circle_slide: float = 1.2
 
+    def hand(self, fixture: EqualityFixture, free_start: Array, t: float) -> Array:
+        """The hand's target (x, y, z, phi) at time t [s] in the base frame [m, rad].
+
+        It slides along the fixture's first free coordinate, rolls, and circles the
+        fixture at ``push`` [m] in the plane of its normals (ramped in over 0.5 s).
+
+        Args:
+            fixture: the fixture the operator works along.
+            free_start: the free coordinates f(x) (6.34) where the run started.
+            t: time since the start [s].
+        """
+        m = fixture.rows
+        free = np.array(free_start, dtype=float)
+        amp = self.circle_slide if isinstance(fixture, Circle) else self.slide
+        free[0] += amp * np.sin(2 * np.pi * t / self.slide_period)
+        free[-1] = self.roll * np.sin(2 * np.pi * t / (1.7 * self.slide_period))
+        on = fixture.inverse(np.zeros(m), free)
+        normals = fixture.jacobian(on)[:, :3]
+        normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
+        ang = 2 * np.pi * t / self.push_period
+        ramp = min(1.0, t / 0.5)
+        if m == 2:
+            u1 = normals[0]
+            u2 = normals[1] - (normals[1] @ u1) * u1
+            u2 /= np.linalg.norm(u2)
+            offset = self.push * ramp * (np.cos(ang) * u1 + np.sin(ang) * u2)
+        else:
+            offset = self.push * ramp * np.cos(ang) * normals[0]
+        return np.r_[on[:3] + offset, on[3]]
+
+    def wrench(
+        self, fixture: EqualityFixture, free_start: Array, t: float, x: Array, pdot: Array
+    ) -> tuple[Array, float]:
+        """The operator's force on the tool tip [N] and roll torque [N*m], base frame.
+
+        ``F = K_h (h - p) - B_h pdot`` and ``tau_roll = K_roll (phi_h - phi)``.
+
+        Args:
+            fixture: the fixture the operator works along.
+            free_start: the free coordinates where the run started.
+            t: time since the start [s].
+            x: the tool's task vector (x, y, z, phi) [m, m, m, rad].
+            pdot: the tool tip's velocity [m/s].
+        """
+        h = self.hand(fixture, free_start, t)
+        force = self.stiffness * (h[:3] - x[:3]) - self.damping * np.asarray(pdot)
+        return force, self.roll_stiffness * (float(h[3]) - float(x[3]))
+
 
 class ExperimentResult(NamedTuple):
     """One run's measurements.
@@ -221,28 +269,10 @@ def run_experiment(
                     saturated += 1
                 applied = np.clip(tau, -limits, limits)
             # The operator's hand, in the base frame: slide along the fixture, circle round it.
-            free = f_start.copy()
-            amp = op.circle_slide if isinstance(fixture, Circle) else op.slide
-            free[0] += amp * np.sin(2 * np.pi * t / op.slide_period)
-            free[-1] = op.roll * np.sin(2 * np.pi * t / (1.7 * op.slide_period))
-            on = fixture.inverse(np.zeros(m), free)
-            normals = fixture.jacobian(on)[:, :3]
-            normals = normals / np.linalg.norm(normals, axis=1, keepdims=True)
-            ang = 2 * np.pi * t / op.push_period
-            ramp = min(1.0, t / 0.5)
-            if m == 2:
-                u1 = normals[0]
-                u2 = normals[1] - (normals[1] @ u1) * u1
-                u2 /= np.linalg.norm(u2)
-                offset = op.push * ramp * (np.cos(ang) * u1 + np.sin(ang) * u2)
-            else:
-                offset = op.push * ramp * np.cos(ang) * normals[0]
-            hand = on[:3] + offset
             pos = x[:3]
             pdot = (pos - p_prev) / sim.dt if k else np.zeros(3)
             p_prev = pos
-            f_op = op.stiffness * (hand - pos) - op.damping * pdot
-            roll_torque = op.roll_stiffness * (on[3] - x[3])
+            f_op, roll_torque = op.wrench(fixture, f_start, t, x, pdot)
             tool_world, _ = sim.true_tool_pose()
             p.applyExternalForce(
                 sim.body_id,
