@@ -20,11 +20,14 @@ Example:
 from __future__ import annotations
 
 import fnmatch
+import functools
+import heapq
 import math
 import os
 import re
+from collections import deque
 from collections.abc import Iterable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Union
 
 from suture_engine.trace.reader import TraceMessage, TraceReader
@@ -215,17 +218,23 @@ class GoldenResult:
 TraceSource = Union[str, "os.PathLike[str]", TraceReader, Iterable[TraceMessage]]
 
 
-def _load(source: TraceSource) -> tuple[dict[str, list[TraceMessage]], dict[str, Any]]:
+def _stream(source: TraceSource) -> Iterable[TraceMessage]:
     if isinstance(source, (str, os.PathLike)):
         source = TraceReader(source)
-    per_topic: dict[str, list[TraceMessage]] = {}
-    meta: dict[str, Any] = {}
-    messages = source.messages() if isinstance(source, TraceReader) else source
-    for msg in messages:
-        per_topic.setdefault(msg.topic, []).append(msg)
-        if msg.topic == "/meta" and not meta and isinstance(msg.data, Mapping):
-            meta = dict(msg.data)
-    return per_topic, meta
+    return source.messages() if isinstance(source, TraceReader) else source
+
+
+class _Channel:
+    """Per-topic state of a streaming comparison: unmatched messages of each side."""
+
+    __slots__ = ("actual", "divergence", "expected", "n_actual", "n_expected")
+
+    def __init__(self) -> None:
+        self.expected: deque[TraceMessage] = deque()
+        self.actual: deque[TraceMessage] = deque()
+        self.n_expected = 0
+        self.n_actual = 0
+        self.divergence: Divergence | None = None
 
 
 def compare(
@@ -234,14 +243,21 @@ def compare(
     tolerances: ToleranceSpec = DEFAULT_TOLERANCES,
     *,
     topics: Sequence[str] | None = None,
+    max_lag: int = 10_000,
 ) -> GoldenResult:
     """Compares an actual trace with an expected (golden) one.
 
+    The n-th message of a channel is compared with the n-th message of the same
+    channel on the other side. Both sides are read as streams merged in time order,
+    so memory stays small whatever the length of the traces.
+
     Args:
-        expected: the golden trace: a path, a reader, or messages.
+        expected: the golden trace: a path, a reader, or messages in time order.
         actual: the trace to check: a path, a reader, or messages of a live run.
         tolerances: per-channel, per-field tolerances.
         topics: topics or globs to compare (default: every channel of either side).
+        max_lag: a channel whose one side runs this many messages ahead of the
+            other diverges there (bounds the memory).
 
     Returns:
         The result, with the first divergence in simulation time.
@@ -249,23 +265,54 @@ def compare(
     Raises:
         TraceError: a file cannot be read (foreign, corrupt, I/O).
     """
-    exp, meta = _load(expected)
-    act, _ = _load(actual)
-    rate = meta.get("control_rate_hz")
-    names = sorted(set(exp) | set(act))
-    if topics is not None:
-        names = [n for n in names if any(fnmatch.fnmatchcase(n, p) for p in topics)]
+    e_stream = ((m.log_time_ns, 0, i, m) for i, m in enumerate(_stream(expected)))
+    a_stream = ((m.log_time_ns, 1, i, m) for i, m in enumerate(_stream(actual)))
+    state: dict[str, _Channel] = {}
+    selected: dict[str, bool] = {}
+    rate: Any = None
+    for _t, side, _i, msg in heapq.merge(e_stream, a_stream):
+        topic = msg.topic
+        if side == 0 and rate is None and topic == "/meta" and isinstance(msg.data, Mapping):
+            rate = msg.data.get("control_rate_hz")
+        keep = selected.get(topic)
+        if keep is None:
+            keep = topics is None or any(fnmatch.fnmatchcase(topic, p) for p in topics)
+            selected[topic] = keep
+        if not keep:
+            continue
+        ch = state.get(topic)
+        if ch is None:
+            ch = state[topic] = _Channel()
+        if side == 0:
+            ch.n_expected += 1
+            if ch.divergence is None:
+                ch.expected.append(msg)
+        else:
+            ch.n_actual += 1
+            if ch.divergence is None:
+                ch.actual.append(msg)
+        if ch.divergence is not None:
+            continue
+        while ch.expected and ch.actual:
+            index = ch.n_expected - len(ch.expected)
+            d = _compare_pair(topic, index, ch.expected.popleft(), ch.actual.popleft(), tolerances)
+            if d is not None:
+                ch.divergence = d
+                ch.expected.clear()
+                ch.actual.clear()
+                break
+        if len(ch.expected) > max_lag or len(ch.actual) > max_lag:
+            ch.divergence = _unmatched(topic, ch, f"more than {max_lag} messages apart")
     found: list[Divergence] = []
-    count = 0
-    for topic in names:
-        e_msgs, a_msgs = exp.get(topic, []), act.get(topic, [])
-        count += len(e_msgs)
-        d = _compare_channel(topic, e_msgs, a_msgs, tolerances, rate)
-        if d is not None:
-            found.append(d)
+    for topic, ch in state.items():
+        if ch.divergence is None and (ch.expected or ch.actual):
+            ch.divergence = _unmatched(topic, ch, None)
+        if ch.divergence is not None:
+            found.append(replace(ch.divergence, tick=_tick(ch.divergence.time_ns, rate)))
     found.sort(key=lambda d: (d.time_ns, d.channel))
     first = found[0] if found else None
-    return GoldenResult(first is None, first, tuple(found), count, len(names))
+    messages = sum(ch.n_expected for ch in state.values())
+    return GoldenResult(first is None, first, tuple(found), messages, len(state))
 
 
 def _tick(time_ns: int, rate: Any) -> int | None:
@@ -274,61 +321,51 @@ def _tick(time_ns: int, rate: Any) -> int | None:
     return round(time_ns * float(rate) / 1e9)
 
 
-def _compare_channel(
-    topic: str,
-    expected: list[TraceMessage],
-    actual: list[TraceMessage],
-    spec: ToleranceSpec,
-    rate: Any,
+def _unmatched(topic: str, ch: _Channel, why: str | None) -> Divergence:
+    """The divergence of a channel whose one side has messages the other lacks."""
+    if ch.expected:
+        e = ch.expected[0]
+        index = ch.n_expected - len(ch.expected)
+        reason = why or f"actual trace ends after {ch.n_actual} messages on this channel"
+        return Divergence(e.log_time_ns, None, topic, index, "", e.data, _MISSING, None, reason)
+    a = ch.actual[0]
+    index = ch.n_actual - len(ch.actual)
+    reason = why or f"unexpected message: expected only {ch.n_expected} on this channel"
+    return Divergence(a.log_time_ns, None, topic, index, "", _MISSING, a.data, None, reason)
+
+
+def _compare_pair(
+    topic: str, index: int, e: TraceMessage, a: TraceMessage, spec: ToleranceSpec
 ) -> Divergence | None:
-    for i in range(max(len(expected), len(actual))):
-        if i >= len(actual):
-            e = expected[i]
-            return Divergence(
-                e.log_time_ns,
-                _tick(e.log_time_ns, rate),
-                topic,
-                i,
-                "",
-                e.data,
-                _MISSING,
-                None,
-                f"actual trace ends after {len(actual)} messages on this channel",
-            )
-        if i >= len(expected):
-            a = actual[i]
-            return Divergence(
-                a.log_time_ns,
-                _tick(a.log_time_ns, rate),
-                topic,
-                i,
-                "",
-                _MISSING,
-                a.data,
-                None,
-                f"unexpected message: expected only {len(expected)} on this channel",
-            )
-        e, a = expected[i], actual[i]
-        if e.log_time_ns != a.log_time_ns:
-            t = min(e.log_time_ns, a.log_time_ns)
-            return Divergence(
-                t,
-                _tick(t, rate),
-                topic,
-                i,
-                "<time>",
-                e.log_time_ns,
-                a.log_time_ns,
-                None,
-                "messages at different simulation times [ns]",
-            )
-        found = _diff(topic, "", e.data, a.data, spec)
-        if found is not None:
-            path, ev, av, tol, reason = found
-            return Divergence(
-                e.log_time_ns, _tick(e.log_time_ns, rate), topic, i, path, ev, av, tol, reason
-            )
-    return None
+    if e.log_time_ns != a.log_time_ns:
+        t = min(e.log_time_ns, a.log_time_ns)
+        return Divergence(
+            t,
+            None,
+            topic,
+            index,
+            "<time>",
+            e.log_time_ns,
+            a.log_time_ns,
+            None,
+            "messages at different simulation times [ns]",
+        )
+    if e.data == a.data:  # the common case, decided in C
+        return None
+    found = _diff(topic, "", e.data, a.data, spec)
+    if found is None:
+        return None
+    path, ev, av, tol, reason = found
+    return Divergence(e.log_time_ns, None, topic, index, path, ev, av, tol, reason)
+
+
+@functools.lru_cache(maxsize=4096)
+def _tolerance_cached(spec: ToleranceSpec, topic: str, bare: str) -> Tolerance | None:
+    return spec.tolerance_for(topic, bare)
+
+
+def _tolerance(spec: ToleranceSpec, topic: str, path: str) -> Tolerance | None:
+    return _tolerance_cached(spec, topic, _INDEX.sub("", path))
 
 
 _Found = tuple[str, Any, Any, Tolerance | None, str]
@@ -339,7 +376,7 @@ def _diff(topic: str, path: str, e: Any, a: Any, spec: ToleranceSpec) -> _Found 
     if isinstance(e, dict) and isinstance(a, dict):
         for key in sorted(set(e) | set(a)):
             sub = f"{path}.{key}" if path else str(key)
-            if spec.tolerance_for(topic, sub) is None:
+            if _tolerance(spec, topic, sub) is None:
                 continue
             if key not in a:
                 return sub, e[key], _MISSING, None, "field missing in the actual message"
@@ -358,7 +395,7 @@ def _diff(topic: str, path: str, e: Any, a: Any, spec: ToleranceSpec) -> _Found 
                 return found
         return None
     if _is_float_pair(e, a):
-        tol = spec.tolerance_for(topic, path)
+        tol = _tolerance(spec, topic, path)
         if tol is None:
             return None
         ef, af = float(e), float(a)

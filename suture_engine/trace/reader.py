@@ -51,6 +51,7 @@ _OP_CHUNK = 0x06
 _OP_DATA_END = 0x0F
 _KNOWN_OPS = frozenset(range(0x01, 0x10))
 
+_decode_json = json.JSONDecoder().decode
 _U16 = struct.Struct("<H")
 _U32 = struct.Struct("<I")
 _U64 = struct.Struct("<Q")
@@ -273,7 +274,7 @@ class TraceReader:
     def _decode(self, channel_id: int, log_time_ns: int, data: bytes) -> TraceMessage:
         topic = self._channels[channel_id].topic
         try:
-            value = json.loads(data)
+            value = _decode_json(data.decode("utf-8"))
         except ValueError as exc:
             raise TraceCorruptError(self._name, f"message on {topic} is not JSON: {exc}", -1) from (
                 exc
