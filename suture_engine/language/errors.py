@@ -95,7 +95,7 @@ def problems_from_validation(
             message = f"unknown key {key!r}" + (f"; did you mean {close[0]!r}?" if close else "")
         elif kind == "missing" and loc:
             message = f"missing required key {str(loc[-1])!r}"
-        elif "input" in err and kind not in ("missing",):
+        elif "input" in err and kind not in ("missing", "unit_mismatch"):
             found = (
                 str(err["input"])
                 if type(err["input"]).__name__ == "Quantity"

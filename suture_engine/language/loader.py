@@ -287,7 +287,9 @@ def _convert(spec: ParamSpec, value: Any) -> Any:
     if spec.unit is None:
         raise ValueError("a quantity parameter needs a `unit`")
     factor, dim = parse_unit(spec.unit)
-    if isinstance(value, str):
+    if isinstance(value, str) and parse_quantity(value).dim == (0, 0, 0, 0):
+        q = Quantity(parse_quantity(value).value * factor, dim)  # "1e5": a bare number
+    elif isinstance(value, str):
         q = parse_quantity(value)
     elif isinstance(value, Quantity):
         q = value
@@ -578,8 +580,8 @@ def _load_state(
         enabled=doc.when,
     )
     if doc.skill is not None:
-        params = _skill_params(ctx, doc.skill, doc.with_, source, where)
-        return _replace(state, params=params)
+        params, partial = _skill_params(ctx, doc.skill, doc.with_, source, where)
+        return _replace(state, params=params, partial_params=partial)
     if doc.use is not None:
         sub = _load_use(ctx, doc, source, file, where, scene, roles, stack, allow_outside)
         return _replace(state, use=sub)
@@ -609,24 +611,30 @@ def _lenient_on(raw: Any) -> dict[str, str | FailurePolicy]:
 
 def _skill_params(
     ctx: _Context, skill: str, with_: dict[str, Any], source: SourceMap, where: PathKey
-) -> Any:
+) -> tuple[Any, Any]:
+    """(validated parameters or None, parameters with the invalid fields dropped or None)."""
     from skills.registry import UnknownSkill, get_skill
 
     try:
         cls = get_skill(skill)
     except UnknownSkill as exc:
         ctx.problems.append(source.problem(exc.code, exc.message, (*where, "skill")))
-        return None
+        return None, None
     except Exception as exc:  # a third-party skill that fails to import
         ctx.problems.append(
             source.problem("skill-import", f"skill {skill!r} failed to load: {exc}", where)
         )
-        return None
+        return None, None
     try:
-        return cls.Params.model_validate(with_)
+        return cls.Params.model_validate(with_), None
     except ValidationError as exc:
         ctx.problems.extend(problems_from_validation(exc, source, (*where, "with"), cls.Params))
-        return None
+        bad = {err["loc"][0] for err in exc.errors() if err.get("loc")}
+    try:
+        partial = cls.Params.model_validate({k: v for k, v in with_.items() if k not in bad})
+    except ValidationError:
+        partial = None
+    return None, partial
 
 
 def _load_use(

@@ -57,6 +57,9 @@ class LoadedState:
         description: free text.
         enabled: False when the state's ``when`` is false: the runtime skips it and
             takes its ``done`` transition at once.
+        partial_params: when ``params`` is invalid, the parameters validated with the
+            invalid fields left at their defaults, so that the dry-run can still check
+            the rest; never used to run.
     """
 
     name: str
@@ -70,6 +73,7 @@ class LoadedState:
     outcome: str | None = None
     description: str = ""
     enabled: bool = True
+    partial_params: SkillParams | None = None
 
     @property
     def terminal(self) -> bool:

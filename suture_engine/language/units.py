@@ -52,6 +52,7 @@ Dimension = tuple[int, int, int, int]
 _DIMLESS: Dimension = (0, 0, 0, 0)
 _NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
 _PATTERN = rf"^\s*{_NUMBER}\s*[A-Za-zµ°%].*$"
+_NUMBER_ONLY = re.compile(rf"^\s*{_NUMBER}\s*$")
 _QUANTITY_RE = re.compile(rf"^\s*({_NUMBER})\s*(.*?)\s*$")
 _FACTOR_RE = re.compile(r"([A-Za-zµ°%]+)(?:(?:\^|\*\*)([-+]?\d+))?")
 
@@ -254,6 +255,8 @@ class Unit:
     def _convert_one(self, value: Any) -> Any:
         from pydantic_core import PydanticCustomError
 
+        if isinstance(value, str) and _NUMBER_ONLY.match(value):
+            return float(value)  # YAML 1.1 reads 1e5 as text; a bare number is SI
         if isinstance(value, str):
             try:
                 value = parse_quantity(value)

@@ -64,7 +64,8 @@ def validate_file(
 def _sorted_unique(problems: list[Problem]) -> list[Problem]:
     seen: set[tuple[Any, ...]] = set()
     out = []
-    for p in problems:
+    order = {name: i for i, name in enumerate(dict.fromkeys(p.file for p in problems))}
+    for p in sorted(problems, key=lambda p: (order[p.file], p.line, p.column)):
         key = (p.file, p.line, p.column, p.code, p.message)
         if key not in seen:
             seen.add(key)
@@ -318,10 +319,10 @@ def _state_checks(proc: Procedure, state: LoadedState) -> list[Problem]:
                     (*base, "invariant", "max_tension"),
                 )
             )
-    if state.skill is None or state.params is None:
+    params = state.params if state.params is not None else state.partial_params
+    if state.skill is None or params is None:
         return out
     cls = get_skill(state.skill)
-    params = state.params
     where: PathKey = (*base, "with")
     fields = type(params).model_fields
     for name, info in fields.items():
@@ -365,8 +366,8 @@ def _state_checks(proc: Procedure, state: LoadedState) -> list[Problem]:
                 )
             )
     if scene is not None:
-        out.extend(_tool_check(proc, state, cls, src, where))
-        out.extend(_reach_checks(proc, state, src, where))
+        out.extend(_tool_check(proc, params, cls, src, where))
+        out.extend(_reach_checks(proc, state, params, src, where))
     try:
         found = cls.check(params, scene)
     except Exception as exc:  # a third-party check that breaks must not crash validation
@@ -385,10 +386,10 @@ def _robot_of(proc: Procedure, role: Any) -> Any:
 
 
 def _tool_check(
-    proc: Procedure, state: LoadedState, cls: Any, src: SourceMap, where: PathKey
+    proc: Procedure, params: Any, cls: Any, src: SourceMap, where: PathKey
 ) -> list[Problem]:
     tools = getattr(cls, "tools", None)
-    role = getattr(state.params, "robot", None)
+    role = getattr(params, "robot", None)
     robot = _robot_of(proc, role)
     if not tools or robot is None or robot.tool in tools:
         return []
@@ -403,9 +404,8 @@ def _tool_check(
 
 
 def _reach_checks(
-    proc: Procedure, state: LoadedState, src: SourceMap, where: PathKey
+    proc: Procedure, state: LoadedState, params: Any, src: SourceMap, where: PathKey
 ) -> list[Problem]:
-    params = state.params
     scene = proc.scene
     if params is None or scene is None or getattr(params, "relative_to", None) is not None:
         return []
