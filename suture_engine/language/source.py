@@ -236,6 +236,10 @@ def load_yaml_file(path: Path, display: str | None = None) -> YamlDocument:
         text = path.read_text(encoding="utf-8")
     except ProblemError:
         raise
-    except (OSError, UnicodeDecodeError) as exc:
+    except UnicodeDecodeError as exc:
+        raise ProblemError(
+            [Problem("yaml-syntax", f"the file is not UTF-8 text: {exc.reason}", name, 1, 1)]
+        ) from None
+    except OSError as exc:
         raise ProblemError([Problem("io-error", f"cannot read file: {exc}", name, 0, 0)]) from None
     return load_yaml_text(text, name)
