@@ -21,6 +21,7 @@ from suture_engine.suture.knot import (
     PlacementInfeasible,
     beta_max,
     bridge_tension,
+    placement_error,
     placement_trajectory,
     securing_directions,
     sliding_condition,
@@ -129,7 +130,7 @@ NORMAL = np.array([0.0, 0.0, 1.0])
 KNOT0 = 0.5 * (PA + PB) + 0.012 * NORMAL
 
 
-def _traj(beta: float | None = None, **kw: float) -> object:
+def _traj(beta: float | str | None = None, **kw: float) -> object:
     args: dict = dict(rate=0.004, mu=0.3, lengths=(0.025, 0.03), dt=0.01)
     args.update(kw)
     return placement_trajectory(PA, PB, KNOT0, NORMAL, beta=beta, **args)
@@ -144,8 +145,8 @@ def test_knot_moves_down_the_normal_at_the_sliding_rate() -> None:
     np.testing.assert_allclose(tr.gamma[:, 0], np.arctan2(tr.height, half), atol=1e-12)  # (4.38)
 
 
-@pytest.mark.parametrize("beta", [None, 0.1, 0.2])
-def test_strand_lengths_are_invariant(beta: float | None) -> None:
+@pytest.mark.parametrize("beta", [None, 0.1, 0.2, "max"])
+def test_strand_lengths_are_invariant(beta: float | str | None) -> None:
     tr = _traj(beta, seat_height=0.004)
     for end, anchor, length in ((tr.end1, PA, 0.025), (tr.end2, PB, 0.03)):
         total = np.linalg.norm(end - tr.knot, axis=1) + np.linalg.norm(tr.knot - anchor, axis=1)
@@ -161,8 +162,8 @@ def test_minimum_tension_trajectory_is_4_40() -> None:
     np.testing.assert_allclose(tr.tension_ratio[:-1], 0.0)
 
 
-@pytest.mark.parametrize("beta", [0.0, 0.15])
-def test_knot_position_follows_from_the_ends(beta: float) -> None:
+@pytest.mark.parametrize("beta", [0.0, 0.15, "max"])
+def test_knot_position_follows_from_the_ends(beta: float | str) -> None:
     """Solve (4.34)-(4.35) for q given the end trajectories; it must be p_n(t)."""
     tr = _traj(beta, seat_height=0.005)
     c1 = 0.025 + np.linalg.norm(KNOT0 - PA)
@@ -244,3 +245,23 @@ def test_directions_stay_in_the_tissue_plane() -> None:
     np.testing.assert_allclose(d.loop_end, [-1.0, 0.0, 0.0], atol=1e-15)
     with pytest.raises(ValueError):
         securing_directions([0, 0, 0], [1, 0, 0], 0)
+
+
+def test_steepest_sliding_pull_costs_more_tension() -> None:
+    """Fig. 4.19: beta = beta_max(t) against beta = 0; the latter has less bridge tension."""
+    steep, flat = _traj("max", seat_height=0.001), _traj(None, seat_height=0.001)
+    assert np.all(steep.beta < steep.beta_max)
+    assert np.all(steep.tension_ratio > flat.tension_ratio)
+    for k in range(0, len(steep.time), 25):
+        for i in range(2):
+            b, g = float(steep.beta[k, i]), float(steep.gamma[k, i])
+            assert slide_margin(b, g, 0.3) > 0  # still slides, by the force balance
+
+
+def test_placement_error_components() -> None:
+    seat = 0.5 * (PA + PB)
+    u = (PB - PA) / np.linalg.norm(PB - PA)
+    err = placement_error(seat + 0.002 * NORMAL + 0.0015 * u, PA, PB, 2.0 * NORMAL)
+    assert err.height == pytest.approx(0.002)
+    assert err.lateral == pytest.approx(0.0015)
+    assert err.total == pytest.approx(0.0025)

@@ -35,7 +35,7 @@ to the tissue).
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from typing import Literal, NamedTuple
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -43,11 +43,13 @@ from numpy.typing import ArrayLike, NDArray
 from suture_engine.errors import SutureError
 
 __all__ = [
+    "PlacementError",
     "PlacementInfeasible",
     "PlacementTrajectory",
     "ThrowDirections",
     "beta_max",
     "bridge_tension",
+    "placement_error",
     "placement_trajectory",
     "securing_directions",
     "sliding_condition",
@@ -170,7 +172,8 @@ def placement_trajectory(
     mu: float,
     lengths: tuple[float, float],
     beta_min: float = 0.0,
-    beta: float | None = None,
+    beta: float | Literal["max"] | None = None,
+    max_margin: float = 0.95,
     seat_height: float = 0.0,
     dt: float = 0.01,
 ) -> PlacementTrajectory:
@@ -195,7 +198,10 @@ def placement_trajectory(
         mu: suture-suture friction coefficient [-].
         lengths: pulled-leg lengths L_1, L_2 at t = 0 (knot to grasp) [m].
         beta_min: smallest pulling angle allowed [rad] (>= 0).
-        beta: pulling angle to use [rad]; default ``beta_min`` (4.40).
+        beta: pulling angle to use [rad]; default ``beta_min`` (4.40);
+            ``"max"`` follows ``max_margin * beta_max(gamma(t))``, the
+            steepest pull that still slides (the other curve of Fig. 4.19).
+        max_margin: fraction of beta_max used when ``beta="max"``.
         seat_height: knot height where placement stops [m].
         dt: sample period [s].
 
@@ -215,9 +221,12 @@ def placement_trajectory(
         raise ValueError("rate and dt must be > 0")
     if beta_min < 0:
         raise ValueError("beta_min must be >= 0")
-    use_beta = beta_min if beta is None else beta
+    follow_max = beta == "max"
+    use_beta = beta_min if beta is None or follow_max else float(beta)
     if use_beta < beta_min:
         raise ValueError(f"beta {use_beta!r} below beta_min {beta_min!r}")
+    if follow_max and not (0.0 < max_margin < 1.0):
+        raise ValueError(f"max_margin must lie in (0, 1), got {max_margin!r}")
     plane_pt = 0.5 * (pa + pb)
     h0 = float((p0 - plane_pt) @ n)
     if h0 <= seat_height:
@@ -234,21 +243,27 @@ def placement_trajectory(
     gamma = np.empty((len(time), 2))
     bmax = np.empty_like(gamma)
     delta = np.empty_like(gamma)
-    ends = []
-    for i, (a, u) in enumerate(zip(anchors, dirs, strict=True)):
+    dists = []
+    for i, a in enumerate(anchors):
         leg = a[None, :] - knot
         dist = np.linalg.norm(leg, axis=1)
         gamma[:, i] = np.arcsin(np.clip(-(leg @ n) / dist, -1.0, 1.0))
         bmax[:, i] = [beta_max(max(g, 0.0), mu) for g in gamma[:, i]]
         delta[:, i] = dist[0] - dist
-        ray = math.cos(use_beta) * u + math.sin(use_beta) * n
-        ends.append(knot + (lengths[i] + delta[:, i])[:, None] * ray[None, :])
-    if use_beta > 0:
-        bad = np.argwhere(use_beta >= bmax)
+        dists.append(dist)
+    if follow_max:
+        betas = np.maximum(max_margin * bmax, beta_min)
+    else:
+        betas = np.full_like(gamma, use_beta)
+    if np.any(betas > 0):
+        bad = np.argwhere((betas > 0) & (betas >= bmax))
         if len(bad):
             k, i = bad[0]
-            raise PlacementInfeasible(use_beta, float(bmax[k, i]), float(height[k]))
-    betas = np.full_like(gamma, use_beta)
+            raise PlacementInfeasible(float(betas[k, i]), float(bmax[k, i]), float(height[k]))
+    ends = []
+    for i, u in enumerate(dirs):
+        ray = np.cos(betas[:, i])[:, None] * u[None, :] + np.sin(betas[:, i])[:, None] * n[None, :]
+        ends.append(knot + (lengths[i] + delta[:, i])[:, None] * ray)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(gamma > 0, np.sin(betas) / np.sin(gamma), np.inf)
     return PlacementTrajectory(
@@ -316,3 +331,36 @@ def securing_directions(
     ha = -hb
     sign = -1.0 if throw % 2 else 1.0
     return ThrowDirections(throw=throw, loop_end=sign * hb, post_end=sign * ha)
+
+
+class PlacementError(NamedTuple):
+    """How far a knot ended from where it should sit (4.5.1).
+
+    Attributes:
+        height: knot height above the tissue plane [m] (0 when seated).
+        lateral: distance from the seat point p_0 within the tissue plane [m].
+        total: distance from p_0 [m].
+    """
+
+    height: float
+    lateral: float
+    total: float
+
+
+def placement_error(
+    knot: ArrayLike, entry: ArrayLike, exit: ArrayLike, normal: ArrayLike
+) -> PlacementError:
+    """Knot placement error relative to the seat point p_0 = (p_a + p_b) / 2.
+
+    Args:
+        knot: knot position p_n [m].
+        entry: entry point p_a [m].
+        exit: exit point p_b [m].
+        normal: tissue normal (out of the tissue).
+    """
+    n = _unit(np.asarray(normal, dtype=float), "normal")
+    seat = 0.5 * (np.asarray(entry, dtype=float) + np.asarray(exit, dtype=float))
+    d = np.asarray(knot, dtype=float) - seat
+    height = float(d @ n)
+    lateral = float(np.linalg.norm(d - height * n))
+    return PlacementError(height=height, lateral=lateral, total=float(np.linalg.norm(d)))
