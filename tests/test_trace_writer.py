@@ -70,7 +70,10 @@ def test_official_mcap_reader_agrees(tmp_path: Path) -> None:
             assert message.publish_time == message.log_time
             theirs.append((channel.topic, message.log_time, json.loads(message.data)))
         summary = reader.get_summary()
+        (metadata,) = reader.iter_metadata()
     assert theirs == ours
+    assert metadata.name == "suture_engine"
+    assert metadata.metadata["procedure"] == "synthetic" and metadata.metadata["seed"] == "0"
     assert summary is not None and summary.statistics is not None
     assert summary.statistics.message_count == len(ours)
     assert len(summary.chunk_indexes) > 3  # several chunks were written

@@ -78,6 +78,19 @@ class TraceMeta:
             message["backend"] = self.backend
         return message
 
+    def to_mcap_metadata(self) -> dict[str, str]:
+        """The main fields as an MCAP metadata record (string values; Foxglove shows it)."""
+        fields = {
+            "procedure": self.procedure,
+            "seed": str(int(self.seed)),
+            "control_rate_hz": repr(float(self.control_rate_hz)),
+            "engine_version": self.engine_version,
+            "robots": ",".join(self.robots),
+        }
+        if self.backend is not None:
+            fields["backend"] = self.backend
+        return fields
+
 
 class _SyncingStream:
     """A write-through wrapper that notes when the mcap writer emitted bytes."""
@@ -182,6 +195,7 @@ class TraceWriter:
         self._mcap.start(profile="", library=LIBRARY_PREFIX + meta.engine_version)
         self._sync()
         self.write(channels.META, 0, meta.to_message())
+        self._mcap.add_metadata("suture_engine", meta.to_mcap_metadata())
         self.flush()  # a killed run's trace still says what it is
 
     # -- writing ----------------------------------------------------------------------------
