@@ -111,3 +111,19 @@ def test_graph_dot() -> None:
 def test_graph_of_an_invalid_procedure_exits_1() -> None:
     result = _suture("graph", "tests/corpus/misspelt-state-key.yaml")
     assert result.returncode == 1 and "unknown-key" in result.stderr
+
+
+def test_validate_imports_no_heavy_module() -> None:
+    code = (
+        "import sys, io, glob\n"
+        "from pathlib import Path\n"
+        "from suture_engine.validation.report import validate_command\n"
+        "rc = validate_command([Path(p) for p in sorted(glob.glob('procedures/*.yaml'))],"
+        " out=io.StringIO())\n"
+        "heavy = ('pint', 'numpy', 'scipy', 'pybullet', 'matplotlib', 'osqp', 'mcap', 'rich')\n"
+        "print(rc, [m for m in heavy if m in sys.modules])\n"
+    )
+    result = subprocess.run(
+        [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=False
+    )
+    assert result.stdout.strip() == "0 []", result.stdout + result.stderr

@@ -127,3 +127,42 @@ def test_override_of_unknown_parameter_is_reported() -> None:
     result = load(PROCEDURES / "stitch.yaml", params={"tial": "20 mm"})
     (problem,) = result.problems
     assert problem.code == "unknown-param" and "did you mean 'tail'" in problem.message
+
+
+def test_includes_outside_the_tree_need_an_allowance(tmp_path: Path) -> None:
+    inner = tmp_path / "mine"
+    inner.mkdir()
+    text = (
+        "procedure: outside\n"
+        f"scene: {PROCEDURES / 'scenes' / 'bench.yaml'}\n"
+        "roles: {stitcher: endobot_1, grasper: endobot_2}\n"
+        "initial: a\n"
+        "states:\n"
+        f"  a: {{use: {PROCEDURES / 'stitch.yaml'}, on: {{done: end}}}}\n"
+        "  end: {outcome: succeeded}\n"
+    )
+    path = inner / "p.yaml"
+    path.write_text(text)
+    codes = [p.code for p in load(path).problems]
+    assert codes == ["include-outside", "include-outside"]
+    assert load(path, allow_outside=True).problems == []
+    path.write_text("includes_outside: true\n" + text)
+    assert load(path).problems == []
+
+
+def test_parameter_bounds_and_bare_numbers_in_the_declared_unit(tmp_path: Path) -> None:
+    sub = tmp_path / "sub.yaml"
+    sub.write_text(
+        "procedure: sub\n"
+        "params:\n"
+        "  tail: {type: quantity, unit: mm, default: 30, min: 10 mm, max: 0.1 m}\n"
+        "initial: end\n"
+        "states:\n"
+        "  end: {outcome: succeeded}\n"
+    )
+    result = load(sub)
+    assert result.procedure is not None
+    assert result.procedure.params["tail"] == pytest.approx(0.030)  # 30 in mm
+    assert [p.code for p in result.problems] == ["missing-scene"]  # a file alone needs a scene
+    codes = [p.code for p in load(sub, params={"tail": "11 cm"}).problems]
+    assert codes == ["missing-scene", "out-of-bounds"]
