@@ -156,3 +156,25 @@ def test_short_pybullet_run_holds_the_line_at_the_desired_stiffness() -> None:
     # Physics side: the operator's normal force against the deviation, same stiffness
     # up to inertia and joint friction.
     np.testing.assert_allclose(res.operator_slope, 1000.0, rtol=0.15)
+
+
+def test_operator_pushes_with_the_same_impedance_in_all_directions() -> None:
+    from suture_engine.control.shared_experiment import OperatorModel, thesis_line
+
+    op = OperatorModel(push=0.02, stiffness=300.0, damping=0.0)
+    line = thesis_line()
+    f0 = np.array([0.12, 0.0])
+    dirs = []
+    for t in np.linspace(0.6, 0.6 + op.push_period, 40, endpoint=False):
+        h = op.hand(line, f0, float(t))
+        # The hand circles the line at `push` from it, at the sliding free coordinate.
+        assert np.linalg.norm(line.value(h)) == pytest.approx(0.02, rel=1e-9)
+        on = line.project(h)
+        force, _ = op.wrench(line, f0, float(t), on, np.zeros(3))
+        # On the line, the force is K_h times the hand's offset: normal to the line.
+        np.testing.assert_allclose(force, 300.0 * (h[:3] - on[:3]), atol=1e-12)
+        assert abs(force @ line.direction) < 1e-9 * np.linalg.norm(line.direction)
+        dirs.append(line.value(h) / 0.02)
+    # Over one push period the direction turns all the way round the line.
+    angles = np.unwrap(np.arctan2([d[1] for d in dirs], [d[0] for d in dirs]))
+    assert np.ptp(angles) > 2 * np.pi * 0.9

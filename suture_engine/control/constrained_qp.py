@@ -138,7 +138,7 @@ class QPWeights:
 
     task: Array = field(default_factory=lambda: np.array([1.0, 1.0, 1.0, 1e-2]))
     damping: float = 1e-4
-    slack: float = 1e6
+    slack: float = 1e5
     position_gain: float = 10.0
     fixture_gain: float = 20.0
 
@@ -300,7 +300,7 @@ class ConstrainedQP:
             "polishing": False,
             "eps_abs": 1e-5,
             "eps_rel": 1e-5,
-            "max_iter": 400,
+            "max_iter": 4000,
             "time_limit": 2e-3,
             "check_termination": 10,
             "adaptive_rho": True,
