@@ -36,6 +36,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "HOOK_MOUTH",
+    "SHAFT_RADIUS",
     "BentTipGrasper",
     "Grasper",
     "JawState",
@@ -47,6 +48,8 @@ __all__ = [
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
 _IDENTITY: Quat = (0.0, 0.0, 0.0, 1.0)
+SHAFT_RADIUS = 1.5e-3
+"""Radius of a grasper's instrument shaft [m]."""
 HOOK_MOUTH = 3.5e-3
 """Distance from the hook's shank to its barb, along the tip's x [m]."""
 
@@ -260,6 +263,7 @@ class Grasper(Tool):
     suture: Suture | None = None
     held_segment: int = -1
     hook_body: int = -1
+    shaft_body: int = -1
     hook_extension: float = 0.0
     _hook_target: float = 0.0
     _timer: float = 0.0
@@ -278,6 +282,7 @@ class Grasper(Tool):
         orientation: Quat = _IDENTITY,
         suture: Suture | None = None,
         hook: bool = True,
+        shaft: float = 0.0,
         **kwargs: float,
     ) -> Grasper:
         """Add a grasper tip to the world, driven kinematically from ``position``.
@@ -289,6 +294,9 @@ class Grasper(Tool):
             orientation: initial orientation; the jaws point along the tip's +z.
             suture: the thread the jaws can grasp and the hook can catch.
             hook: whether to build the flexible hook.
+            shaft: length of the instrument shaft behind the jaws [m] that the thread
+                collides with (to wrap the thread around it, as in an instrument tie);
+                0 for none.
             **kwargs: any of ``travel_time`` [s], ``reach`` [m], ``hook_travel_time`` [s],
                 ``hook_reach`` [m], ``drive_force`` [N].
         """
@@ -297,7 +305,45 @@ class Grasper(Tool):
         self._drive_to_world(position, orientation)
         if hook:
             self._make_hook()
+        if shaft > 0:
+            self._make_shaft(shaft)
         return self
+
+    def _make_shaft(self, length: float) -> None:
+        """A capsule of radius ``SHAFT_RADIUS`` along the tip's -z, from 3 mm behind the jaws."""
+        import pybullet as p
+
+        c = self.client
+        col = p.createCollisionShape(
+            p.GEOM_CAPSULE, radius=SHAFT_RADIUS, height=length, physicsClientId=c
+        )
+        vis = p.createVisualShape(
+            p.GEOM_CAPSULE,
+            radius=SHAFT_RADIUS,
+            length=length,
+            rgbaColor=[0.6, 0.6, 0.65, 1.0],
+            physicsClientId=c,
+        )
+        offset = [0.0, 0.0, -(3e-3 + SHAFT_RADIUS + length / 2)]
+        pos, orn = self.pose()
+        at, _ = p.multiplyTransforms(pos, orn, offset, _IDENTITY)
+        self.shaft_body = p.createMultiBody(0.01, col, vis, at, orn, physicsClientId=c)
+        p.changeDynamics(self.shaft_body, -1, lateralFriction=0.2, physicsClientId=c)
+        for other in (self.body, self.hook_body):
+            if other >= 0:
+                p.setCollisionFilterPair(self.shaft_body, other, -1, -1, 0, physicsClientId=c)
+        cons = p.createConstraint(
+            self.body,
+            -1,
+            self.shaft_body,
+            -1,
+            p.JOINT_FIXED,
+            [0, 0, 0],
+            offset,
+            [0, 0, 0],
+            physicsClientId=c,
+        )
+        p.changeConstraint(cons, maxForce=self.drive_force, physicsClientId=c)
 
     # ---- jaws ---------------------------------------------------------------------------
 
@@ -346,7 +392,7 @@ class Grasper(Tool):
         return i if d[i] <= self.reach else -1
 
     def _parts(self) -> list[int]:
-        return [self.body, self.hook_body]
+        return [self.body, self.hook_body, self.shaft_body]
 
     def step(self) -> None:
         """Advance jaw travel and hook motion by one physics step."""
