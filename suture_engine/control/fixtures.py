@@ -8,7 +8,8 @@ diffeomorphism ``d = [c; f]`` (6.34) that joint-space shared control needs (6.35
 The cone is an inequality ``g(x) <= 0``.
 
 Every row is scaled so that it reads as a length [m] near the constraint set: a gain on
-it is then a stiffness [N/m] and a deviation from it is a distance [m].
+it is then a stiffness [N/m] and a deviation from it is a distance [m]. (The one
+exception is ``Line(thesis_form=True)``, which keeps the rows of (6.31) verbatim.)
 """
 
 from __future__ import annotations
