@@ -100,6 +100,7 @@ def test_every_catalogue_schema_is_valid_json_schema() -> None:
 
     for spec in channels.CATALOGUE:
         jsonschema.Draft202012Validator.check_schema(spec.schema)
+        jsonschema.Draft202012Validator.check_schema(channels.validation_schema(spec))
         assert json.loads(channels.schema_bytes(spec)) == spec.schema
 
 
@@ -143,6 +144,48 @@ def test_no_wall_clock_by_default(tmp_path: Path) -> None:
             w.write(channels.qp_topic("left"), 0, qp)
         (msg,) = TraceReader(path).messages(["/qp/*"])
         assert ("solve_time_us" in msg.data) is keep
+
+
+def test_centerline_points_are_stored_as_coordinate_arrays(tmp_path: Path) -> None:
+    path = tmp_path / "t.mcap"
+    points = np.array([[0.0, 0.1, 0.2], [1.0, 1.1, 1.2]])
+    with TraceWriter(path, TraceMeta("p", 1, 1000.0), validate=True) as w:
+        w.write(channels.GROUND_TRUTH_SUTURE, 0, {"centerline": points})
+        with pytest.raises(TraceMessageError, match="malformed"):
+            w.write(channels.GROUND_TRUTH_SUTURE, 1, {"centerline": [[0.0, 1.0]]})
+    (msg,) = TraceReader(path).messages([channels.GROUND_TRUTH_SUTURE])
+    assert msg.data == {"x": [0.0, 1.0], "y": [0.1, 1.1], "z": [0.2, 1.2]}
+
+
+_FOXGLOVE_ITEM_TYPES = {"boolean", "string", "number", "integer", "object"}
+_FOXGLOVE_FIELD_TYPES = _FOXGLOVE_ITEM_TYPES | {"array"}
+
+
+def _check_foxglove_parsable(schema: dict[str, Any], where: str) -> None:
+    """The subset of JSON Schema that Foxglove's JSON-schema parser accepts.
+
+    An object with ``properties``; each field has one type among boolean, string,
+    number, integer, object (recursively the same) and array; array items have one
+    type among boolean, string, number, integer and object (no arrays of arrays).
+    """
+    assert schema.get("type") == "object", where
+    assert isinstance(schema.get("properties"), dict), f"{where}: object without properties"
+    for name, field in schema["properties"].items():
+        here = f"{where}.{name}"
+        kind = field.get("type")
+        assert kind in _FOXGLOVE_FIELD_TYPES, f"{here}: type {kind!r}"
+        if kind == "object":
+            _check_foxglove_parsable(field, here)
+        elif kind == "array":
+            items = field.get("items", {})
+            assert items.get("type") in _FOXGLOVE_ITEM_TYPES, f"{here}: items {items!r}"
+            if items["type"] == "object":
+                _check_foxglove_parsable(items, here + "[]")
+
+
+def test_every_catalogue_schema_is_foxglove_parsable() -> None:
+    for spec in channels.CATALOGUE:
+        _check_foxglove_parsable(dict(spec.schema), spec.pattern)
 
 
 def test_numpy_and_non_finite_values(tmp_path: Path) -> None:

@@ -39,7 +39,7 @@ from __future__ import annotations
 
 import json
 import re
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -63,6 +63,7 @@ __all__ = [
     "qp_topic",
     "schema_bytes",
     "spec_for",
+    "validation_schema",
 ]
 
 ROBOT_NAME_PATTERN = r"[A-Za-z0-9_\-]+"
@@ -92,6 +93,7 @@ class ChannelSpec:
         ground_truth: True for simulator ground truth (evaluation only).
         wall_clock_fields: top-level fields that hold wall-clock measurements; the
             writer drops them unless asked to keep them, to stay deterministic.
+        adapt: converts a message from the form writers give to the stored form.
     """
 
     pattern: str
@@ -100,6 +102,9 @@ class ChannelSpec:
     description: str
     ground_truth: bool = False
     wall_clock_fields: tuple[str, ...] = ()
+    adapt: Callable[[Mapping[str, Any]], Mapping[str, Any]] | None = field(
+        default=None, repr=False, compare=False
+    )
     _regex: re.Pattern[str] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -132,10 +137,10 @@ class ChannelSpec:
 
 
 def _vec(description: str, n: int | None = None) -> dict[str, Any]:
-    """A JSON Schema array of numbers (``null`` stands for a non-finite value)."""
+    """A JSON Schema array of numbers (a ``null`` item stands for a non-finite value)."""
     schema: dict[str, Any] = {
         "type": "array",
-        "items": {"type": ["number", "null"]},
+        "items": {"type": "number"},
         "description": description,
     }
     if n is not None:
@@ -157,9 +162,25 @@ def _obj(
     }
 
 
+# Every field has one JSON type, so that Foxglove can parse the schemas (it rejects type
+# lists, "null" types, arrays of arrays and objects without "properties"). Any field may
+# hold null (JSON has no NaN); `validation_schema` derives the schema that says so.
+def _centerline_columns(message: Mapping[str, Any]) -> Mapping[str, Any]:
+    """``{"centerline": [[x, y, z], ...]}`` -> ``{"x": [...], "y": [...], "z": [...]}``."""
+    points = message.get("centerline")
+    if points is None:
+        return message
+    out = {k: v for k, v in message.items() if k != "centerline"}
+    rows = points.tolist() if hasattr(points, "tolist") else points
+    for axis, name in enumerate(("x", "y", "z")):
+        out[name] = [float(p[axis]) for p in rows]
+    return out
+
+
 _STR = {"type": "string"}
-_OPT_STR = {"type": ["string", "null"]}
-_NUM = {"type": ["number", "null"]}
+_OPT_STR = _STR
+_NUM = {"type": "number"}
+_FREE = {"type": "object", "properties": {}}
 
 CATALOGUE: tuple[ChannelSpec, ...] = (
     ChannelSpec(
@@ -170,7 +191,7 @@ CATALOGUE: tuple[ChannelSpec, ...] = (
             {
                 "procedure": {**_STR, "description": "procedure name"},
                 "seed": {"type": "integer", "description": "random seed"},
-                "params": {"type": "object", "description": "procedure parameters as run"},
+                "params": {**_FREE, "description": "procedure parameters as run"},
                 "control_rate_hz": {"type": "number", "description": "control rate [Hz]"},
                 "engine_version": {**_STR, "description": "suture-engine version"},
                 "robots": {"type": "array", "items": _STR, "description": "robot names"},
@@ -189,6 +210,7 @@ CATALOGUE: tuple[ChannelSpec, ...] = (
             {
                 "name": {**_STR, "description": "event name"},
                 "kind": {
+                    "type": "string",
                     "enum": ["planned", "unpredictable", "operator", "info"],
                     "description": "planned events advance; unpredictable ones go to NOT-BE",
                 },
@@ -252,7 +274,7 @@ CATALOGUE: tuple[ChannelSpec, ...] = (
         _obj(
             "Command applied to the robot",
             {
-                "kind": {"enum": ["torque", "velocity", "position"]},
+                "kind": {"type": "string", "enum": ["torque", "velocity", "position"]},
                 "values": _vec("joint torques [N*m], velocities [rad/s] or positions [rad]"),
                 "tool": {**_NUM, "description": "tool command (gripper opening [rad])"},
                 "mode": {**_OPT_STR, "description": "Lock, Manual or Autonomous"},
@@ -310,16 +332,16 @@ CATALOGUE: tuple[ChannelSpec, ...] = (
         _obj(
             "Simulated suture centerline (ground truth)",
             {
-                "centerline": {
-                    "type": "array",
-                    "items": _vec("point [m] in the world frame", 3),
-                    "description": "centerline points [m]",
-                },
+                "x": _vec("x of the centerline points [m], world frame"),
+                "y": _vec("y of the centerline points [m], world frame"),
+                "z": _vec("z of the centerline points [m], world frame"),
             },
-            ["centerline"],
+            ["x", "y", "z"],
         ),
-        "The simulator's suture centerline, at a lower rate. Evaluation only.",
+        "The simulator's suture centerline, at a lower rate. Evaluation only. Writers may "
+        "pass ``{'centerline': [[x, y, z], ...]}``: it is stored as coordinate arrays.",
         ground_truth=True,
+        adapt=_centerline_columns,
     ),
     ChannelSpec(
         GROUND_TRUTH_TENSION,
@@ -342,9 +364,9 @@ CATALOGUE: tuple[ChannelSpec, ...] = (
             "Knot classification (ground truth)",
             {
                 "type": {**_STR, "description": "unknot, square, granny, half_hitches, ..."},
-                "crossings": {"type": ["integer", "null"]},
-                "seated": {"type": ["boolean", "null"]},
-                "detail": {"type": "object"},
+                "crossings": {"type": "integer"},
+                "seated": {"type": "boolean"},
+                "detail": _FREE,
             },
             ["type"],
         ),
@@ -371,6 +393,31 @@ def spec_for(topic: str) -> ChannelSpec:
         if spec.matches(topic):
             return spec
     raise UnknownChannelError(topic, tuple(_BY_PATTERN))
+
+
+def validation_schema(spec: ChannelSpec) -> dict[str, Any]:
+    """The channel's schema with ``null`` allowed wherever a value is (for validation).
+
+    The stored schemas give each field one type (what Foxglove parses); messages may
+    still hold ``null`` for a non-finite number or an absent optional value.
+    """
+
+    def nullable(node: Any, top: bool) -> Any:
+        if isinstance(node, dict):
+            out = {k: nullable(v, False) for k, v in node.items()}
+            if "properties" in node:
+                out["properties"] = {k: nullable(v, False) for k, v in node["properties"].items()}
+            if not top and isinstance(node.get("type"), str):
+                out["type"] = [node["type"], "null"]
+                if "enum" in node:
+                    out["enum"] = [*node["enum"], None]
+            return out
+        if isinstance(node, list):
+            return [nullable(v, False) for v in node]
+        return node
+
+    result: dict[str, Any] = nullable(dict(spec.schema), True)
+    return result
 
 
 def schema_bytes(spec: ChannelSpec) -> bytes:

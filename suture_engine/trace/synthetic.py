@@ -108,8 +108,12 @@ def synthetic_messages(
         yield channels.GROUND_TRUTH_TENSION, t_ns, {"tension_N": tension}
         if k % centerline_every == 0:
             s = np.linspace(0.0, 0.3, centerline_points)
-            pts = np.stack([s, 0.01 * np.sin(20 * s + t), np.zeros_like(s)], axis=1)
-            yield channels.GROUND_TRUTH_SUTURE, t_ns, {"centerline": pts.round(6).tolist()}
+            y = (0.01 * np.sin(20 * s + t)).round(6)
+            yield (
+                channels.GROUND_TRUTH_SUTURE,
+                t_ns,
+                {"x": s.round(6).tolist(), "y": y.tolist(), "z": [0.0] * centerline_points},
+            )
         if k > 0 and k % event_every == 0:
             nxt = "tighten" if state == "approach" else "approach"
             yield channels.EVENTS, t_ns, {"name": f"reached_{nxt}", "kind": "planned"}

@@ -227,6 +227,11 @@ class TraceWriter:
         if entry is None:
             entry = self._register(topic)
         channel_id, spec = entry
+        if spec.adapt is not None:
+            try:
+                message = spec.adapt(message)
+            except (TypeError, ValueError, IndexError) as exc:
+                raise TraceMessageError(str(self.path), topic, f"malformed message: {exc}") from exc
         if spec.wall_clock_fields and not self._include_wall_clock:
             message = {k: v for k, v in message.items() if k not in spec.wall_clock_fields}
         try:
@@ -327,7 +332,7 @@ class TraceWriter:
 
         validator = self._validators.get(spec.schema_name)
         if validator is None:
-            validator = jsonschema.Draft202012Validator(spec.schema)
+            validator = jsonschema.Draft202012Validator(channels.validation_schema(spec))
             self._validators[spec.schema_name] = validator
         try:
             validator.validate(codec.decode(data))
