@@ -73,3 +73,18 @@ def test_sampled_gain_satisfies_the_discrete_riccati_equation() -> None:
         p = phi @ (p - k @ c @ p) @ phi.T + qd
     k = p @ c.T @ np.linalg.inv(c @ p @ c.T + rd)
     np.testing.assert_allclose(obs.discrete_gain, k, rtol=1e-4, atol=1e-9)
+
+
+def test_per_joint_update_equals_matrix_predictor_corrector() -> None:
+    obs = KalmanVelocityObserver(4, 1e-3, process_noise=[10.0, 100.0, 1e3, 50.0])
+    rng = np.random.default_rng(3)
+    x = np.zeros(8)
+    y0 = rng.normal(size=4)
+    obs.update(y0, np.zeros(4))
+    x[:4] = y0
+    c = obs.c
+    for _ in range(50):
+        y, u = rng.normal(size=4), rng.normal(size=4)
+        prior = obs.transition @ x + obs.input_matrix @ u  # expm-discretised model
+        x = prior + obs.discrete_gain @ (y - c @ prior)
+        np.testing.assert_allclose(obs.update(y, u), x, rtol=1e-10, atol=1e-12)

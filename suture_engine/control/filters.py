@@ -94,9 +94,10 @@ class WashoutFilter:
         self.n = int(n)
         self._a = 1.0 / (1.0 + self.pole * self.dt)
         self._b = self.pole * self._a
-        self._q_prev = np.zeros(self.n)
+        # Plain floats per joint: for 4 channels this beats numpy's per-call overhead.
+        self._q_prev: list[float] = [0.0] * self.n
+        self._vl: list[float] = [0.0] * self.n
         self._v = np.zeros(self.n)
-        self._tmp = np.zeros(self.n)
         self._started = False
 
     def __repr__(self) -> str:
@@ -105,10 +106,11 @@ class WashoutFilter:
     def reset(self, q: ArrayLike | None = None) -> None:
         """Forget the history; optionally start from position ``q`` [rad or m] at rest."""
         self._v[:] = 0.0
+        self._vl = [0.0] * self.n
         if q is None:
             self._started = False
         else:
-            self._q_prev[:] = q
+            self._q_prev = np.asarray(q, dtype=float).tolist()
             self._started = True
 
     def update(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -121,15 +123,16 @@ class WashoutFilter:
             The velocity estimate [rad/s or m/s]; a view of internal storage,
             overwritten by the next call (copy it to keep it).
         """
+        ql = q.tolist()
         if not self._started:
-            self._q_prev[:] = q
+            self._q_prev = ql
             self._started = True
             return self._v
-        np.subtract(q, self._q_prev, out=self._tmp)
-        self._tmp *= self._b
-        self._v *= self._a
-        self._v += self._tmp
-        self._q_prev[:] = q
+        a, b, qp, vl = self._a, self._b, self._q_prev, self._vl
+        for i in range(self.n):
+            vl[i] = a * vl[i] + b * (ql[i] - qp[i])
+        self._q_prev = ql
+        self._v[:] = vl
         return self._v
 
     def transfer_function(self) -> DiscreteTransferFunction:
@@ -152,7 +155,7 @@ class NumericalDifferentiator:
         self.dt = _check_positive("dt", dt)
         self.n = int(n)
         self._inv_dt = 1.0 / self.dt
-        self._q_prev = np.zeros(self.n)
+        self._q_prev: list[float] = [0.0] * self.n
         self._v = np.zeros(self.n)
         self._started = False
 
@@ -165,7 +168,7 @@ class NumericalDifferentiator:
         if q is None:
             self._started = False
         else:
-            self._q_prev[:] = q
+            self._q_prev = np.asarray(q, dtype=float).tolist()
             self._started = True
 
     def update(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -178,13 +181,14 @@ class NumericalDifferentiator:
             The velocity estimate [rad/s or m/s]; a view of internal storage,
             overwritten by the next call.
         """
+        ql = q.tolist()
         if not self._started:
-            self._q_prev[:] = q
+            self._q_prev = ql
             self._started = True
             return self._v
-        np.subtract(q, self._q_prev, out=self._v)
-        self._v *= self._inv_dt
-        self._q_prev[:] = q
+        k, qp = self._inv_dt, self._q_prev
+        self._v[:] = [k * (x - y) for x, y in zip(ql, qp, strict=True)]
+        self._q_prev = ql
         return self._v
 
     def transfer_function(self) -> DiscreteTransferFunction:

@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from suture_engine.control.lqr import FeedbackLinearizingLQR, LqrDesignError, double_integrator
-from suture_engine.control.model import ControlModel, FrictionSign
+from suture_engine.control.model import ControlModel, FrictionSign, as_floats
 
 __all__ = ["KalmanDesign", "KalmanVelocityObserver", "LQGController", "kalman_gain"]
 
@@ -123,11 +123,20 @@ class KalmanVelocityObserver:
         big = np.zeros((3 * n, 3 * n))
         big[: 2 * n, : 2 * n] = a * self.dt
         big[: 2 * n, 2 * n :] = b * self.dt
-        self._phi = np.ascontiguousarray(phi)
-        self._gam_u = np.ascontiguousarray(expm(big)[: 2 * n, 2 * n :])
-        self._innov = np.zeros(n)
+        self.transition = np.ascontiguousarray(phi)
+        self.input_matrix = np.ascontiguousarray(expm(big)[: 2 * n, 2 * n :])
+        # The model is n decoupled double integrators: per joint, two gains.
+        lg = self.discrete_gain
+        self._l1: list[float] = [float(lg[i, i]) for i in range(n)]
+        self._l2: list[float] = [float(lg[n + i, i]) for i in range(n)]
+        recon = np.zeros_like(lg)
+        for i in range(n):
+            recon[i, i], recon[n + i, i] = self._l1[i], self._l2[i]
+        if not np.allclose(recon, lg, rtol=0.0, atol=1e-9 * np.abs(lg).max()):
+            raise LqrDesignError("diagonal noise intensities gave a coupled observer")
+        self._xq: list[float] = [0.0] * n
+        self._xv: list[float] = [0.0] * n
         self._x = np.zeros(2 * n)
-        self._tmp = np.zeros(2 * n)
         self._started = False
 
     def __repr__(self) -> str:
@@ -139,6 +148,8 @@ class KalmanVelocityObserver:
         self._started = q is not None
         if q is not None:
             self._x[: self.n] = q
+        self._xq = self._x[: self.n].tolist()
+        self._xv = [0.0] * self.n
 
     @property
     def position(self) -> FloatArray:
@@ -160,15 +171,23 @@ class KalmanVelocityObserver:
         Returns:
             The state estimate ``[q; qd]``; internal storage.
         """
+        yl, ul = as_floats(y), as_floats(u)
+        n = self.n
         if not self._started:
-            self._x[: self.n] = y
+            self._xq = yl
+            self._x[:n] = yl
             self._started = True
             return self._x
-        np.dot(self._phi, self._x, out=self._tmp)  # predict
-        self._tmp += self._gam_u @ u
-        np.subtract(y, self._tmp[: self.n], out=self._innov)  # correct
-        self._x[:] = self._tmp
-        self._x += self.discrete_gain @ self._innov
+        dt, h2 = self.dt, 0.5 * self.dt * self.dt
+        xq, xv, l1, l2 = self._xq, self._xv, self._l1, self._l2
+        for i in range(n):
+            qp = xq[i] + dt * xv[i] + h2 * ul[i]  # predict (exact for q'' = u)
+            vp = xv[i] + dt * ul[i]
+            r = yl[i] - qp  # correct
+            xq[i] = qp + l1[i] * r
+            xv[i] = vp + l2[i] * r
+        self._x[:n] = xq
+        self._x[n:] = xv
         return self._x
 
 

@@ -20,7 +20,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from suture_engine.control.model import ControlModel, FrictionSign, friction_compensation
+from suture_engine.control.model import ControlModel, FrictionSign, as_floats, coulomb_sign
 from suture_engine.errors import SutureError
 
 __all__ = [
@@ -209,10 +209,19 @@ class FeedbackLinearizingLQR:
         q_w = np.diag(np.concatenate(diag))
         self.design = lqr_gain(a, b, q_w, np.diag(_per_joint(w.effort, n)))
         self.gain = self.design.gain
-        self._x = np.zeros(self.gain.shape[1])
+        # Diagonal weights give a joint-decoupled gain: u_i = -(kp e_i + kv e'_i + ki x_i).
+        blocks = [np.diag(self.gain[:, k * n : (k + 1) * n]) for k in range(len(diag))]
+        self._kp: list[float] = blocks[0].tolist()
+        self._kv: list[float] = blocks[1].tolist()
+        self._ki: list[float] = blocks[2].tolist() if integral else [0.0] * n
+        recon = np.hstack([np.diag(b) for b in blocks])
+        if not np.allclose(recon, self.gain, rtol=0.0, atol=1e-9 * np.abs(self.gain).max()):
+            raise LqrDesignError("diagonal weights gave a coupled gain")
+        self._xi: list[float] = [0.0] * n
+        self._fc: list[float] = np.asarray(model.coulomb, dtype=float).tolist()
+        self._fv: list[float] = np.asarray(model.viscous, dtype=float).tolist()
         self._u = np.zeros(n)
         self._tau = np.zeros(n)
-        self._fric = np.zeros(n)
 
     def __repr__(self) -> str:
         return (
@@ -222,7 +231,12 @@ class FeedbackLinearizingLQR:
 
     def reset(self) -> None:
         """Clear the integral state (call on entering the controlling state)."""
-        self._x[:] = 0.0
+        self._xi = [0.0] * self.n
+
+    @property
+    def integral_state(self) -> FloatArray:
+        """The integrated position errors [rad s, m s]."""
+        return np.array(self._xi)
 
     @property
     def last_acceleration_command(self) -> FloatArray:
@@ -249,27 +263,26 @@ class FeedbackLinearizingLQR:
         Returns:
             Joint torques/forces [N m, N]; internal storage overwritten next call.
         """
-        n = self.n
-        x = self._x
-        np.subtract(q, q_des, out=x[:n])
-        np.subtract(qd, qd_des, out=x[n : 2 * n])
-        if self.integral:
-            xi = x[2 * n :]
-            xi += x[:n] * self.dt
-            np.clip(xi, -self.integral_limit, self.integral_limit, out=xi)
+        ql, vl = as_floats(q), as_floats(qd)
+        qrl, vrl = as_floats(q_des), as_floats(qd_des)
+        al = as_floats(qdd_des) if qdd_des is not None else [0.0] * self.n
+        kp, kv, ki, xi = self._kp, self._kv, self._ki, self._xi
+        lim, dt = self.integral_limit, self.dt
+        ul = []
+        for i in range(self.n):
+            e = ql[i] - qrl[i]
+            if self.integral:
+                x = xi[i] + e * dt
+                xi[i] = lim if x > lim else (-lim if x < -lim else x)
+            ul.append(al[i] - kp[i] * e - kv[i] * (vl[i] - vrl[i]) - ki[i] * xi[i])
         u = self._u
-        np.dot(self.gain, x, out=u)
-        np.negative(u, out=u)
-        if qdd_des is not None:
-            u += qdd_des
+        u[:] = ul
         tau = self._tau
         np.dot(self.model.mass_matrix(q), u, out=tau)
         if self.coriolis:
             tau += self.model.coriolis_matrix(q, qd) @ qd
         tau += self.model.gravity_vector(q)
-        v = qd_des if self.friction_sign is FrictionSign.DESIRED else qd
-        friction_compensation(
-            self.model, v, self._fric, deadband=self.friction_deadband, viscous=True
-        )
-        tau += self._fric
+        src = vrl if self.friction_sign is FrictionSign.DESIRED else vl
+        fc, fv, db = self._fc, self._fv, self.friction_deadband
+        tau += [fc[i] * coulomb_sign(v, db) + fv[i] * v for i, v in enumerate(src)]
         return tau

@@ -23,6 +23,8 @@ from numpy.typing import NDArray
 __all__ = [
     "ControlModel",
     "FrictionSign",
+    "as_floats",
+    "coulomb_sign",
     "endobot_control_model",
     "friction_compensation",
 ]
@@ -102,6 +104,19 @@ class FrictionSign(enum.Enum):
     """The measured or estimated joint velocity, as printed in (5.19)."""
     DESIRED = "desired"
     """The reference velocity: immune to velocity-estimate noise around zero speed."""
+
+
+def as_floats(x: FloatArray | list[float] | tuple[float, ...]) -> list[float]:
+    """A vector as a list of Python floats (cheap for the short vectors of one robot)."""
+    return x.tolist() if isinstance(x, np.ndarray) else [float(v) for v in x]
+
+
+def coulomb_sign(v: float, deadband: float = 0.0) -> float:
+    """``sgn(v)`` of (5.19), ramping linearly inside ``+-deadband`` when it is positive [-]."""
+    if deadband > 0.0:
+        x = v / deadband
+        return 1.0 if x > 1.0 else (-1.0 if x < -1.0 else x)
+    return 1.0 if v > 0.0 else (-1.0 if v < 0.0 else 0.0)
 
 
 def friction_compensation(

@@ -15,7 +15,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from suture_engine.control.model import ControlModel, FrictionSign, friction_compensation
+from suture_engine.control.model import ControlModel, FrictionSign, as_floats, coulomb_sign
 from suture_engine.errors import SutureError
 
 __all__ = [
@@ -140,9 +140,12 @@ class PDController:
         self.friction_sign = friction_sign
         self.friction_deadband = float(friction_deadband)
         n = model.n
-        self._e = np.zeros(n)
+        # Plain floats per joint: for 4 joints this beats numpy's per-call overhead.
+        self._kp: list[float] = self.gains.kp.tolist()
+        self._kd: list[float] = self.gains.kd.tolist()
+        self._fc: list[float] = np.asarray(model.coulomb, dtype=float).tolist()
+        self._zeros: list[float] = [0.0] * n
         self._tau = np.zeros(n)
-        self._fric = np.zeros(n)
 
     def __repr__(self) -> str:
         return (
@@ -164,17 +167,15 @@ class PDController:
         Returns:
             Joint torques/forces [N m, N]; internal storage overwritten next call.
         """
-        tau, e = self._tau, self._e
-        np.subtract(q, q_des, out=e)
-        np.multiply(e, self.gains.kp, out=tau)
-        np.subtract(qd, qd_des, out=e)
-        e *= self.gains.kd
-        tau += e
-        np.negative(tau, out=tau)
-        if self.gravity:
-            tau += self.model.gravity_vector(q)
+        ql, vl, qrl, vrl = as_floats(q), as_floats(qd), as_floats(q_des), as_floats(qd_des)
+        g = self.model.gravity_vector(q).tolist() if self.gravity else self._zeros
+        kp, kd = self._kp, self._kd
+        out = [g[i] - kp[i] * (ql[i] - qrl[i]) - kd[i] * (vl[i] - vrl[i]) for i in range(len(ql))]
         if self.friction:
-            v = qd_des if self.friction_sign is FrictionSign.DESIRED else qd
-            friction_compensation(self.model, v, self._fric, deadband=self.friction_deadband)
-            tau += self._fric
+            src = vrl if self.friction_sign is FrictionSign.DESIRED else vl
+            fc, db = self._fc, self.friction_deadband
+            for i, v in enumerate(src):
+                out[i] += fc[i] * coulomb_sign(v, db)
+        tau = self._tau
+        tau[:] = out
         return tau
