@@ -120,3 +120,16 @@ def test_integral_action_removes_steady_state_error_from_model_mismatch() -> Non
         finals[integral] = np.abs(x[:2] - target)
     assert np.max(finals[False]) > 1e-3
     assert np.max(finals[True]) < 0.1 * np.max(finals[False])
+
+
+def test_endobot_model_coriolis_vector_matches_matrix_product() -> None:
+    from suture_engine.control.model import endobot_control_model
+
+    model = endobot_control_model()
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        q, qd = rng.uniform(-0.5, 0.5, 4), rng.normal(size=4)
+        q[3] = 0.1
+        np.testing.assert_allclose(
+            model.coriolis_torque(q, qd), model.coriolis_matrix(q, qd) @ qd, atol=1e-12
+        )

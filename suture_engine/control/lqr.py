@@ -280,7 +280,7 @@ class FeedbackLinearizingLQR:
         tau = self._tau
         np.dot(self.model.mass_matrix(q), u, out=tau)
         if self.coriolis:
-            tau += self.model.coriolis_matrix(q, qd) @ qd
+            tau += self.model.coriolis_torque(q, qd)
         tau += self.model.gravity_vector(q)
         src = vrl if self.friction_sign is FrictionSign.DESIRED else vl
         fc, fv, db = self._fc, self._fv, self.friction_deadband

@@ -45,6 +45,8 @@ class ControlModel:
         gravity_vector: ``q -> G^(q)`` [N m / N], shape ``(n,)`` (3.41, 5.2).
         coulomb: estimated Coulomb coefficients ``Fc^`` [N m / N], shape ``(n,)`` (5.19).
         viscous: estimated viscous coefficients ``Fv^`` [N m s / N s], shape ``(n,)``.
+        coriolis_vector: optional ``(q, qd) -> C^(q, qd) qd``, cheaper than the matrix
+            when only the product is needed.
     """
 
     mass_matrix: Callable[[FloatArray], FloatArray]
@@ -52,6 +54,13 @@ class ControlModel:
     gravity_vector: Callable[[FloatArray], FloatArray]
     coulomb: FloatArray
     viscous: FloatArray
+    coriolis_vector: Callable[[FloatArray, FloatArray], FloatArray] | None = None
+
+    def coriolis_torque(self, q: FloatArray, qd: FloatArray) -> FloatArray:
+        """``C^(q, qd) qd`` [N m, N] (3.40)."""
+        if self.coriolis_vector is not None:
+            return self.coriolis_vector(q, qd)
+        return self.coriolis_matrix(q, qd) @ qd
 
     @property
     def n(self) -> int:
@@ -88,12 +97,16 @@ def endobot_control_model(
     def gravity(q: FloatArray) -> FloatArray:
         return endobot.gravity_vector(q, p, g_out)
 
+    def coriolis_vec(q: FloatArray, qd: FloatArray) -> FloatArray:
+        return endobot.coriolis_vector(q, qd, p)
+
     return ControlModel(
         mass_matrix=mass,
         coriolis_matrix=coriolis,
         gravity_vector=gravity,
         coulomb=fc * friction_scale,
         viscous=fv * friction_scale,
+        coriolis_vector=coriolis_vec,
     )
 
 
