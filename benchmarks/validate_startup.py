@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import argparse
 import glob
+import os
+import resource
 import shutil
 import statistics
 import subprocess
@@ -21,15 +23,19 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def _time(cmd: list[str], runs: int) -> list[float]:
-    times = []
+def _time(cmd: list[str], runs: int) -> tuple[list[float], list[float]]:
+    """Wall times and CPU times (user + system of the child) [s]."""
+    walls, cpus = [], []
     for _ in range(runs):
+        before = resource.getrusage(resource.RUSAGE_CHILDREN)
         start = time.perf_counter()
         proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=False)
-        times.append(time.perf_counter() - start)
+        walls.append(time.perf_counter() - start)
+        after = resource.getrusage(resource.RUSAGE_CHILDREN)
+        cpus.append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
         if proc.returncode != 0:
             sys.exit(f"{' '.join(cmd)} failed ({proc.returncode}):\n{proc.stdout}{proc.stderr}")
-    return times
+    return walls, cpus
 
 
 def main() -> None:
@@ -47,10 +53,13 @@ def main() -> None:
         ("python -c 'import pydantic, yaml'", _time(baseline, args.runs)),
         (f"suture validate procedures/*.yaml ({len(files)} files)", _time(validate, args.runs)),
     ]
-    print(f"runs: {args.runs} each, median [min-max] wall time")
-    for label, times in rows:
-        print(f"  {label:<48} {statistics.median(times):.3f} s [{min(times):.3f}-{max(times):.3f}]")
-    print("target: suture validate <= 0.600 s")
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"runs: {args.runs} each; load average {load:.2f} on {os.cpu_count()} CPUs")
+    print(f"  {'command':<48} {'wall median [min-max]':<26} cpu median")
+    for label, (walls, cpus) in rows:
+        wall = f"{statistics.median(walls):.3f} s [{min(walls):.3f}-{max(walls):.3f}]"
+        print(f"  {label:<48} {wall:<26} {statistics.median(cpus):.3f} s")
+    print("target: suture validate <= 0.600 s wall on an idle 2-core machine")
 
 
 if __name__ == "__main__":
