@@ -233,6 +233,8 @@ class Automaton:
         self._target = ""
         self._pending: tuple[StepSpec, Any] | None = None
         self._model = _Model()
+        self._mode_state = ""
+        self._mode = Mode.IDLE
         self.machine = _Machine(
             model=self._model,
             states=self._states(),
@@ -329,6 +331,13 @@ class Automaton:
     def mode(self) -> Mode:
         """The high-level mode (Fig. 4.23)."""
         s = self.state
+        if s == self._mode_state:
+            return self._mode
+        self._mode_state, self._mode = s, self._mode_of_state(s)
+        return self._mode
+
+    @staticmethod
+    def _mode_of_state(s: str) -> Mode:
         if s == "idle":
             return Mode.IDLE
         if s in ("lock", "manual"):

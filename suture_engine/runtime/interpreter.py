@@ -151,6 +151,7 @@ class Interpreter:
         self.stop_reason = ""
         self._waiting_ticks = 0
         self._last_skill: Any = None
+        self._tension: dict[str, float] = {}
 
     # ----------------------------------------------------------------- skills
     def _base_poses(self) -> dict[str, Any]:
@@ -250,7 +251,7 @@ class Interpreter:
             self._record_transitions(time_ns, records)
             return None
         self._qp_tick(time_ns, a.active_skill, spec)
-        tension = self.tension.estimate(obs)
+        tension = self._tension
         faults = {n: r.fault for n, r in meas.robots.items()}
         violation = self.monitor.check(
             spec.invariant,
@@ -313,6 +314,7 @@ class Interpreter:
             return False
         meas, obs = self._observe()
         self._obs = obs
+        self._tension = tension = self.tension.estimate(obs)
         time_ns = self.tick_index * self.period_ns
         a = self.automaton
         if self.tick_index == 0:
@@ -330,7 +332,6 @@ class Interpreter:
                 tools[name] = rc.tool
             torques[name] = self.controller.torque(name, mode, obs.robots[name], rc)
             modes[name] = mode.value
-        tension = self.tension.estimate(obs)
         self.monitor.max_tension_N = max(self.monitor.max_tension_N, *tension.values())
         truth = self.backend.ground_truth()
         self.recorder.tick(time_ns, obs, torques, modes, tension, truth)

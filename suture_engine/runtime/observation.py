@@ -51,7 +51,10 @@ FloatArray = NDArray[np.float64]
 
 
 def _frozen_array(values: object, size: int | None = None) -> FloatArray:
-    arr = np.array(values, dtype=np.float64, copy=True).reshape(-1)
+    if type(values) is np.ndarray and values.dtype == np.float64 and values.ndim == 1:
+        arr = values.copy()  # the common case, without the generic conversion
+    else:
+        arr = np.array(values, dtype=np.float64, copy=True).reshape(-1)
     if size is not None and arr.shape != (size,):
         raise ValueError(f"expected {size} values, got {arr.shape[0]}")
     arr.flags.writeable = False

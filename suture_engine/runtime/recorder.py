@@ -14,6 +14,8 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from suture_engine.runtime.automaton import TransitionRecord
 from suture_engine.runtime.observation import Observation
 from suture_engine.runtime.operator import OperatorEvent
@@ -24,6 +26,9 @@ _EVENT_KIND = {"planned": "planned", "unpredictable": "unpredictable", "operator
 
 
 def _floats(values: Any) -> list[float]:
+    if isinstance(values, np.ndarray):
+        out: list[float] = values.astype(np.float64, copy=False).tolist()
+        return out
     return [float(v) for v in values]
 
 
