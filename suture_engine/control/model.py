@@ -57,7 +57,15 @@ class ControlModel:
     coriolis_vector: Callable[[FloatArray, FloatArray], FloatArray] | None = None
 
     def coriolis_torque(self, q: FloatArray, qd: FloatArray) -> FloatArray:
-        """``C^(q, qd) qd`` [N m, N] (3.40)."""
+        """``C^(q, qd) qd`` [N m, N] (3.40).
+
+        Args:
+            q: joint positions [rad, m].
+            qd: joint velocities [rad/s, m/s].
+
+        Returns:
+            The Coriolis and centrifugal torques.
+        """
         if self.coriolis_vector is not None:
             return self.coriolis_vector(q, qd)
         return self.coriolis_matrix(q, qd) @ qd
@@ -125,7 +133,15 @@ def as_floats(x: FloatArray | list[float] | tuple[float, ...]) -> list[float]:
 
 
 def coulomb_sign(v: float, deadband: float = 0.0) -> float:
-    """``sgn(v)`` of (5.19), ramping linearly inside ``+-deadband`` when it is positive [-]."""
+    """``sgn(v)`` of (5.19), ramping linearly inside ``+-deadband`` when it is positive.
+
+    Args:
+        v: velocity [rad/s or m/s].
+        deadband: half-width of the linear ramp around zero [rad/s or m/s]; 0 for a hard sign.
+
+    Returns:
+        The sign in [-1, 1].
+    """
     if deadband > 0.0:
         x = v / deadband
         return 1.0 if x > 1.0 else (-1.0 if x < -1.0 else x)
