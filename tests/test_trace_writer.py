@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import itertools
 import json
 import math
 import os
@@ -88,10 +89,13 @@ def test_chunks_are_bounded(tmp_path: Path) -> None:
     with open(path, "rb") as f:
         summary = make_reader(f).get_summary()
     assert summary is not None
-    biggest_message = 4 * 1024  # a centerline message is the largest, well below this
+    biggest_tick = 6 * 1024  # the messages of one tick, a centerline included, are fewer
     sizes = [c.uncompressed_size for c in summary.chunk_indexes]
     assert len(sizes) > 5
-    assert max(sizes) <= chunk_size + biggest_message
+    assert max(sizes) <= chunk_size + biggest_tick
+    # chunks hold whole ticks: no time step is split across two chunks (after /meta's)
+    spans = [(c.message_start_time, c.message_end_time) for c in summary.chunk_indexes[1:]]
+    assert all(end < nxt for (_, end), (nxt, _) in itertools.pairwise(spans))
     assert all(c.compression == "zstd" for c in summary.chunk_indexes)
 
 
@@ -251,10 +255,13 @@ def test_flush_makes_messages_readable_before_close(tmp_path: Path) -> None:
 def test_flush_interval_is_simulation_time(tmp_path: Path) -> None:
     path = tmp_path / "t.mcap"
     w = TraceWriter(path, TraceMeta("p", 1, 1000.0), flush_interval_ns=100_000_000)
-    for k in range(250):  # 0.25 s at 1 kHz: flushes at 0.1 s and 0.2 s
+    for k in range(250):  # 0.25 s at 1 kHz: flushes before the ticks at 0.1 s and 0.2 s
         w.write("/tension/estimated", k * 1_000_000, {"tension_N": float(k)})
-    assert w.last_durable_ns == 200_000_000
-    assert TraceReader(path).status.truncated_at_ns == 200_000_000
+        w.write("/ground_truth/tension", k * 1_000_000, {"tension_N": float(k)})
+    assert w.last_durable_ns == 199_000_000
+    status = TraceReader(path).status
+    assert status.truncated_at_ns == 199_000_000
+    assert status.message_counts["/ground_truth/tension"] == 200  # whole ticks only
     w.close()
 
 
@@ -296,7 +303,7 @@ def test_sigkilled_writer_leaves_a_readable_trace(tmp_path: Path, attempt: int) 
     status = reader.status
     assert status.truncated and not status.complete
     assert status.truncated_at_ns is not None and status.truncated_at_ns >= durable
-    # what was read is exactly a prefix of what was written
+    # what was read is exactly a prefix of what was written, made of whole ticks
     expected = synthetic_messages(600.0)
     got = list(reader.messages())
     assert got[0].topic == "/meta"
@@ -305,3 +312,4 @@ def test_sigkilled_writer_leaves_a_readable_trace(tmp_path: Path, attempt: int) 
         if topic.startswith("/qp/"):
             data = {k: v for k, v in data.items() if k != "solve_time_us"}
         assert (msg.topic, msg.log_time_ns, msg.data) == (topic, t_ns, data)
+    assert next(expected)[1] > got[-1].log_time_ns

@@ -13,6 +13,8 @@
   and a chunk is also closed every ``flush_interval_ns`` of simulation time, so a
   process killed with SIGKILL leaves a file that
   :class:`~suture_engine.trace.reader.TraceReader` reads up to its last flush.
+  Chunks are closed only between time steps, so what survives a crash is a
+  sequence of whole ticks (every message of its last tick is there).
 
 Example:
     >>> with TraceWriter(path, TraceMeta("demo", seed=1, control_rate_hz=1000.0)) as w:
@@ -25,7 +27,7 @@ import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import IO, Any, Literal
+from typing import Any, Literal
 
 from suture_engine import __version__
 from suture_engine.trace import channels, codec
@@ -37,6 +39,9 @@ LIBRARY_PREFIX = "suture-engine/"
 """The MCAP header's ``library`` field starts with this; the reader checks it."""
 
 Compression = Literal["zstd", "lz4", "none"]
+
+_MESSAGE_OVERHEAD = 9 + 22
+"""Bytes of an MCAP message record besides its data (opcode, length, header fields)."""
 
 
 @dataclass(frozen=True)
@@ -92,28 +97,6 @@ class TraceMeta:
         return fields
 
 
-class _SyncingStream:
-    """A write-through wrapper that notes when the mcap writer emitted bytes."""
-
-    def __init__(self, raw: IO[bytes]) -> None:
-        self.raw = raw
-        self.dirty = False
-
-    def write(self, data: bytes) -> int:
-        if data:
-            self.dirty = True
-        return self.raw.write(data)
-
-    def tell(self) -> int:
-        return self.raw.tell()
-
-    def flush(self) -> None:
-        self.raw.flush()
-
-    def close(self) -> None:
-        self.raw.close()
-
-
 class TraceWriter:
     """Writes a trace to an MCAP file.
 
@@ -121,9 +104,10 @@ class TraceWriter:
         path: the output file (created or overwritten).
         meta: the run metadata, written on ``/meta`` at t = 0.
         compression: chunk compression: ``"zstd"`` (default), ``"lz4"`` or ``"none"``.
-        chunk_size: a chunk is closed once its uncompressed size exceeds this [byte].
-        flush_interval_ns: a chunk is also closed when this much simulation time has
-            passed since the last flush [ns]; 0 disables it.
+        chunk_size: a chunk is closed at the first new time step after its uncompressed
+            size reaches this [byte] (chunks hold whole time steps).
+        flush_interval_ns: a chunk is also closed at the first new time step once this
+            much simulation time has passed since the last flush [ns]; 0 disables it.
         fsync: fsync the file at every flush (crash safety against power loss too).
         include_wall_clock: keep wall-clock fields (breaks byte-identical traces).
         validate: check every message against its channel's JSON schema (slow; tests).
@@ -163,11 +147,12 @@ class TraceWriter:
         self._include_wall_clock = include_wall_clock
         self._validate = validate
         self._flush_interval_ns = int(flush_interval_ns)
+        self._chunk_size = int(chunk_size)
         try:
             raw = open(self.path, "wb")
         except OSError as exc:
             raise TraceIOError(str(self.path), f"cannot create trace: {exc.strerror}") from exc
-        self._stream = _SyncingStream(raw)
+        self._file = raw
         kind = {
             "zstd": CompressionType.ZSTD,
             "lz4": CompressionType.LZ4,
@@ -176,9 +161,10 @@ class TraceWriter:
         index = IndexType.CHUNK | IndexType.ATTACHMENT | IndexType.METADATA
         if message_index:
             index |= IndexType.MESSAGE
+        # Chunks are closed here, between time steps, never inside the mcap writer.
         self._mcap = Writer(
-            self._stream,  # type: ignore[arg-type]
-            chunk_size=chunk_size,
+            raw,
+            chunk_size=1 << 62,
             compression=kind,
             index_types=index,
         )
@@ -189,6 +175,7 @@ class TraceWriter:
         self._last_time_ns = 0
         self._last_flush_ns = 0
         self._pending = 0
+        self._chunk_bytes = 0
         self.message_count = 0
         self.last_durable_ns: int | None = None
         """Simulation time of the last message known to be on disk [ns]."""
@@ -240,21 +227,21 @@ class TraceWriter:
             raise TraceMessageError(str(self.path), topic, f"cannot encode: {exc}") from exc
         if self._validate:
             self._check_schema(topic, spec, data)
-        self._last_time_ns = time_ns
         try:
+            if self._pending and time_ns > self._last_time_ns:  # a new time step begins
+                if self._chunk_bytes >= self._chunk_size or (
+                    self._flush_interval_ns > 0
+                    and time_ns - self._last_flush_ns >= self._flush_interval_ns
+                ):
+                    self.flush()  # the chunk holds whole time steps
+                    self._last_flush_ns = time_ns
+            self._last_time_ns = time_ns
             self._mcap.add_message(
                 channel_id, log_time=time_ns, data=data, publish_time=time_ns, sequence=0
             )
             self.message_count += 1
             self._pending += 1
-            if self._stream.dirty:  # a chunk was finished: make it durable
-                self._pending = 0
-                self._sync()
-            elif (
-                self._flush_interval_ns > 0
-                and time_ns - self._last_flush_ns >= self._flush_interval_ns
-            ):
-                self.flush()
+            self._chunk_bytes += len(data) + _MESSAGE_OVERHEAD
         except OSError as exc:
             raise TraceIOError(str(self.path), f"write failed: {exc.strerror}") from exc
 
@@ -269,6 +256,7 @@ class TraceWriter:
         try:
             self._mcap.flush()
             self._pending = 0
+            self._chunk_bytes = 0
             self._sync()
         except OSError as exc:
             raise TraceIOError(str(self.path), f"flush failed: {exc.strerror}") from exc
@@ -284,13 +272,13 @@ class TraceWriter:
         self._closed = True
         try:
             self._mcap.finish()
-            self._stream.flush()
+            self._file.flush()
             if self._fsync:
-                os.fsync(self._stream.raw.fileno())
+                os.fsync(self._file.fileno())
         except OSError as exc:
             raise TraceIOError(str(self.path), f"close failed: {exc.strerror}") from exc
         finally:
-            self._stream.close()
+            self._file.close()
         self.last_durable_ns = self._last_time_ns
 
     def __enter__(self) -> TraceWriter:
@@ -313,16 +301,13 @@ class TraceWriter:
             topic=topic, message_encoding="json", schema_id=schema_id
         )
         self._channel_ids[topic] = (channel_id, spec)
-        if self._stream.dirty:  # registering closed a chunk: sync it before the message
-            self._sync()
         return channel_id, spec
 
     def _sync(self) -> None:
         """Flushes the file (and fsyncs it) after the mcap writer emitted bytes."""
-        self._stream.flush()
+        self._file.flush()
         if self._fsync:
-            os.fsync(self._stream.raw.fileno())
-        self._stream.dirty = False
+            os.fsync(self._file.fileno())
         self._last_flush_ns = self._last_time_ns
         if self.message_count and self._pending == 0:
             self.last_durable_ns = self._last_time_ns
