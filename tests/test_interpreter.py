@@ -231,3 +231,46 @@ def test_skills_observe_estimated_velocity_and_no_ground_truth() -> None:
         est = wf.update(obs.robots["endobot_1"].q)
         np.testing.assert_allclose(obs.robots["endobot_1"].qd, est, atol=1e-12)
     assert max(abs(o.robots["endobot_1"].qd).max() for o in seen) > 1e-4
+
+
+def test_manual_mode_uses_the_interrupted_steps_fixture_when_it_has_one() -> None:
+    from suture_engine.runtime.observation import Command, RobotCommand
+    from suture_engine.runtime.operator import OperatorEvent
+
+    class Fixture(ScriptedSkill):
+        """Holds the pose; in Manual a stiff joint spring (a stand-in fixture) plus gravity."""
+
+        def manual_step(self, ctx: Any, obs: Any) -> Command:
+            from suture_engine.robot import endobot
+
+            q = obs.robots["endobot_1"].q
+            qd = obs.robots["endobot_1"].qd
+            tau = endobot.gravity_vector(q) - 50.0 * (q - self._hold["endobot_1"]) - 2.0 * qd
+            return Command({"endobot_1": RobotCommand.torque(tau)})
+
+    class Ops:
+        def __init__(self) -> None:
+            self.sent = False
+
+        def poll(self, t: float, state: str, step: str | None, mode: str) -> list[Any]:
+            if t >= 0.01 and not self.sent:
+                self.sent = True
+                return [OperatorEvent("manual")]
+            return []
+
+    moved = {}
+    for name, cls in (("plain", ScriptedSkill), ("fixture", Fixture)):
+        plan = Plan(
+            "p",
+            "a",
+            {"a": StepSpec("a", lambda cls=cls: cls("a", "never"), "end")},
+            {"end": Outcome.SUCCEEDED},
+        )
+        be = IdealBackend()
+        it = Interpreter(plan, be, be.reset(), operator=Ops(), max_time_s=0.3)
+        q0 = be.q["endobot_1"].copy()
+        be.apply_external_force("endobot_1", (0.0, 0.5, 0.0), 0.3)
+        s = it.run("p", "ideal")
+        assert s.final_state == "manual"
+        moved[name] = float(np.abs(be.q["endobot_1"] - q0).max())
+    assert moved["plain"] > 10 * moved["fixture"] > 0.0

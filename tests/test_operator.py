@@ -87,3 +87,19 @@ def test_resume_target_must_be_a_step(tmp_path: Path) -> None:
     op = ScriptedOperator(_write(tmp_path, "- {at: 1, do: resume, step: nowhere}\n"))
     with pytest.raises(OperatorFileError, match="nowhere"):
         op.check_steps(["a", "b"])
+
+
+def test_interactive_keys_become_operator_events(monkeypatch: pytest.MonkeyPatch) -> None:
+    import io
+    import sys
+
+    from suture_engine.runtime.operator import InteractiveOperator
+
+    monkeypatch.setattr(sys, "stdin", io.StringIO("lmxRa"))
+    op = InteractiveOperator()
+    op._thread.join(timeout=5)
+    events = op.poll(0.0, "lock", None, "lock")
+    assert [e.action for e in events] == ["lock", "manual", "resume", "abort"]
+    assert {e.source for e in events} == {"interactive"}
+    assert op.poll(0.1, "lock", None, "lock") == []
+    op.close()

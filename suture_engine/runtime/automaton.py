@@ -226,6 +226,7 @@ class Automaton:
         self.retries: dict[str, int] = {name: 0 for name in plan.steps}
         self.retries_total = 0
         self.interrupted_step: str | None = None
+        self.interrupted_skill: Any = None
         self.waiting_for_operator = False
         self.outcome: Outcome | None = None
         self.history: list[TransitionRecord] = []
@@ -450,6 +451,7 @@ class Automaton:
         if self.mode is not Mode.AUTONOMOUS or step is None:
             raise AutomatonError("unpredictable events arise only in a running step", self.state)
         self.interrupted_step = step
+        self.interrupted_skill = self.active_skill
         out = [self._fire("fault", "unpredictable", reason)]
         if operator_lock:
             out.append(self._fire("lock", "operator", reason))

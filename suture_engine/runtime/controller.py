@@ -5,9 +5,10 @@ command into joint torques:
 
 - **Lock** regulates the pose captured when the robot entered Lock,
   x1 = x_cp, x2 = 0 (4.44): PD with gravity compensation (5.10) towards it.
-- **Manual** applies gravity compensation only, tau = G^(q) (5.1); the
-  operator moves the back-drivable arm (a force at the tool tip in
-  simulation).
+- **Manual** applies gravity compensation, tau = G^(q) (5.1); the operator
+  moves the back-drivable arm (a force at the tool tip in simulation). When
+  the interrupted step offers a shared-control law (its skill's
+  ``manual_step``, e.g. a virtual fixture (6.24)), its torques are used instead.
 - **Autonomous** follows the skill: a position setpoint (with velocity
   feed-forward) through the PD law (5.10, 5.19), a velocity setpoint
   integrated into a position setpoint, or torques passed through.
@@ -94,6 +95,9 @@ class ModeController:
             self._vel_setpoint.pop(robot, None)
             self._last_mode[robot] = mode
         if mode is Mode.MANUAL:
+            if command is not None and command.mode is CommandMode.TORQUE:
+                assert command.tau is not None
+                return np.array(command.tau)  # shared control under a fixture (6.24)
             return np.array(self._gc[robot].update(obs.q))
         if mode is Mode.AUTONOMOUS and command is not None:
             if command.mode is CommandMode.TORQUE:

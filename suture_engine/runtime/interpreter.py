@@ -297,6 +297,23 @@ class Interpreter:
             values = {"metrics_error": f"{type(exc).__name__}: {exc}"}
         self.metrics.update(values)
 
+    def _manual_command(self, obs: Observation) -> Command | None:
+        """Manual mode under the interrupted step's shared-control fixture, if it has one.
+
+        A skill that offers ``manual_step(ctx, obs)`` (e.g. a virtual fixture, 6.24,
+        6.33-6.37) gives the Manual law's joint torques; otherwise the controller applies
+        gravity compensation alone (5.1).
+        """
+        skill = self.automaton.interrupted_skill
+        manual_step = getattr(skill, "manual_step", None)
+        if manual_step is None or self.ctx is None:
+            return None
+        try:
+            result = _normalise(manual_step(self.ctx, obs))
+        except Exception:  # a failing fixture must not take the arm from the surgeon
+            return None
+        return result.command
+
     def _manual_check(self, time_ns: int, obs: Observation) -> None:
         a = self.automaton
         if a.mode is not Mode.MANUAL or self.manual_invariant is None:
@@ -325,6 +342,8 @@ class Interpreter:
         torques: dict[str, Any] = {}
         modes: dict[str, str] = {}
         tools: dict[str, Any] = {}
+        if command is None and a.mode is Mode.MANUAL:
+            command = self._manual_command(obs)
         for name in self.robots:
             mode = a.mode_of(name)
             rc = command.robots.get(name) if command is not None else None
