@@ -27,13 +27,16 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
 
 from suture_engine.control.fixtures import Fixture
 from suture_engine.errors import SutureError
+
+if TYPE_CHECKING:
+    from suture_engine.robot.params import EndoBotParams
 
 __all__ = [
     "INF",
@@ -91,6 +94,8 @@ def extension_rate_bound(f_max: float, static_friction: float, viscous_coefficie
 class JointLimits:
     """Joint limits of one EndoBot and the singularity margin (3.22-3.23).
 
+    The defaults are the E1 parameter set's joint limits (:func:`JointLimits.from_params`).
+
     Attributes:
         q_min: lower joint positions [rad, rad, rad, m].
         q_max: upper joint positions [rad, rad, rad, m].
@@ -102,9 +107,9 @@ class JointLimits:
             the speed towards it is at most (distance to the margin) / this.
     """
 
-    q_min: Array = field(default_factory=lambda: np.array([-1.2, -1.2, -np.pi, 0.02]))
-    q_max: Array = field(default_factory=lambda: np.array([1.2, 1.2, np.pi, 0.30]))
-    qd_max: Array = field(default_factory=lambda: np.array([2.0, 2.0, 4.0, 0.2]))
+    q_min: Array = field(default_factory=lambda: _robot_limits()[0])
+    q_max: Array = field(default_factory=lambda: _robot_limits()[1])
+    qd_max: Array = field(default_factory=lambda: _robot_limits()[2])
     horizon: float = 1e-3
     q2_margin: float = 0.2
     q4_min: float = 0.03
@@ -122,6 +127,29 @@ class JointLimits:
             raise QPError("qd_max", self.qd_max, "must be positive")
         if not self.horizon > 0 or not self.singular_time_constant > 0:
             raise QPError("horizon", self.horizon, "horizon and time constant must be > 0 [s]")
+
+    @classmethod
+    def from_params(cls, params: EndoBotParams | None = None, **overrides: Any) -> JointLimits:
+        """The joint limits of a robot parameter set (None: E1), with optional overrides.
+
+        Args:
+            params: the robot's parameters.
+            overrides: other fields (``horizon``, ``q2_margin``...).
+        """
+        lo, hi, qd = _robot_limits(params)
+        return cls(q_min=lo, q_max=hi, qd_max=qd, **overrides)
+
+
+def _robot_limits(params: EndoBotParams | None = None) -> tuple[Array, Array, Array]:
+    """(q_min, q_max, qd_max) of a parameter set's joints (None: E1)."""
+    from suture_engine.robot.params import E1
+
+    joints = (params or E1).joints
+    return (
+        np.array([j.limits.lower for j in joints]),
+        np.array([j.limits.upper for j in joints]),
+        np.array([j.limits.velocity for j in joints]),
+    )
 
 
 @dataclass(frozen=True, eq=False)
