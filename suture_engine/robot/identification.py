@@ -41,6 +41,7 @@ __all__ = [
     "Validation",
     "column_correlation",
     "differential_regressor",
+    "differential_rows",
     "energy_regressor",
     "estimate_motion",
     "fit_differential",
@@ -309,6 +310,49 @@ def _active(shape: GravityShape) -> list[int]:
     return [0, 2, 3] if shape is GravityShape.NONE else [0, 1, 2, 3]
 
 
+def differential_rows(
+    q: ArrayLike,
+    tau: ArrayLike,
+    dt: float,
+    shape: GravityShape,
+    *,
+    cutoff_hz: float | None = 10.0,
+    trim: float = 0.5,
+    deadband: float = 0.0,
+) -> tuple[FloatArray, FloatArray]:
+    """The differential model's regression rows and torques from a record (3.62-3.63, 3.74).
+
+    Positions are low-passed and differenced (:func:`estimate_motion`); the torque
+    and the nonlinear columns get the same low-pass (parallel filtering);
+    ``trim`` seconds are dropped at both ends.
+
+    Args:
+        q: measured positions [rad or m].
+        tau: applied torques [N m or N].
+        dt: sampling time [s].
+        shape: the joint's gravity shape.
+        cutoff_hz: low-pass corner [Hz]; ``None`` for clean data.
+        trim: seconds dropped at each end [s].
+        deadband: speed below which ``sgn`` ramps [rad/s].
+
+    Returns:
+        ``(D, tau)``: the ``(m, 4)`` rows ``[q'', g s(q), sgn q', q']`` and the torques.
+    """
+    qf, qd, qdd = estimate_motion(q, dt, cutoff_hz)
+    qd = np.nan_to_num(qd)  # end samples, trimmed below
+    qdd = np.nan_to_num(qdd)
+    tf = lowpass(tau, dt, cutoff_hz)
+    phi = differential_regressor(qf, qd, qdd, shape, deadband=deadband)
+    # Parallel filtering: the nonlinear columns get the filter the torque got, since
+    # low-pass(sgn(v)) differs from sgn(low-pass(v)) around velocity reversals.
+    for c in (1, 2):
+        if np.any(phi[:, c]):
+            phi[:, c] = lowpass(phi[:, c], dt, cutoff_hz)
+    k = max(2, int(trim / dt))
+    sl = slice(k, qf.size - k)
+    return phi[sl], tf[sl]
+
+
 def fit_differential(
     q: ArrayLike,
     tau: ArrayLike,
@@ -336,20 +380,8 @@ def fit_differential(
     Returns:
         The estimate.
     """
-    qf, qd, qdd = estimate_motion(q, dt, cutoff_hz)
-    qd = np.nan_to_num(qd)  # end samples, trimmed below
-    qdd = np.nan_to_num(qdd)
-    tf = lowpass(tau, dt, cutoff_hz)
-    phi = differential_regressor(qf, qd, qdd, shape, deadband=deadband)
-    # Parallel filtering: the nonlinear columns get the filter the torque got, since
-    # low-pass(sgn(v)) differs from sgn(low-pass(v)) around velocity reversals.
-    for c in (1, 2):
-        if np.any(phi[:, c]):
-            phi[:, c] = lowpass(phi[:, c], dt, cutoff_hz)
-    k = max(2, int(trim / dt))
-    sl = slice(k, qf.size - k)
-    phi = phi[sl]
-    y = tf[sl]
+    phi, y = differential_rows(q, tau, dt, shape, cutoff_hz=cutoff_hz, trim=trim,
+                               deadband=deadband)  # fmt: skip
     cols = _active(shape)
     if friction is not None:
         y = y - friction.coulomb * phi[:, 2] - friction.viscous * phi[:, 3]

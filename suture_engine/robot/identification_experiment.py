@@ -38,10 +38,13 @@ from suture_engine.robot.identification import (
     FrictionEstimate,
     GravityShape,
     JointEstimate,
+    Validation,
+    differential_rows,
     estimate_motion,
     fit_differential,
     fit_energy,
     fit_friction,
+    validate,
 )
 from suture_engine.robot.params import E1, EndoBotParams
 
@@ -137,12 +140,15 @@ class JointResult(NamedTuple):
         estimate: the identified parameters.
         truth: the simulated robot's values (condition is nan).
         friction: the constant-velocity friction estimate.
+        validation: residual of the differential model with the estimate, and its
+            correlation with the excitation input (3.77, 3.80).
     """
 
     joint: int
     estimate: JointEstimate
     truth: JointEstimate
     friction: FrictionEstimate
+    validation: Validation
 
 
 class IdentificationReport(NamedTuple):
@@ -414,7 +420,16 @@ def identify_robot(
                                  friction=friction, window=50)  # fmt: skip
             else:
                 est = fit_differential(rec.q, rec.tau, DT, pl.shape, cutoff_hz=cutoff)
-            results.append(JointResult(j, est, joint_truth(sim.model_params, j, pl.hold), friction))
+            trim = 0.5
+            rows, tau_f = differential_rows(rec.q, rec.tau, DT, pl.shape, cutoff_hz=cutoff,
+                                            trim=trim)  # fmt: skip
+            k = max(2, int(trim / DT))
+            u = rec.u[k : rec.u.size - k]
+            theta = [est.inertia, 0.0 if math.isnan(est.gravity_moment) else est.gravity_moment,
+                     est.coulomb, est.viscous]  # fmt: skip
+            check = validate(rows, theta, tau_f, u)
+            truth = joint_truth(sim.model_params, j, pl.hold)
+            results.append(JointResult(j, est, truth, friction, check))
     return IdentificationReport(
         p.name, kind.value, method, encoder_noise, tuple(results), quantised
     )

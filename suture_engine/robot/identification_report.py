@@ -29,7 +29,7 @@ def _pct(est: float, true: float) -> str:
 
 
 def _num(x: float) -> str:
-    return "-" if math.isnan(x) else f"{x:.4f}"
+    return "-" if math.isnan(x) else f"{x:.4g}"
 
 
 def report_table(report: IdentificationReport) -> object:
@@ -61,7 +61,12 @@ def report_table(report: IdentificationReport) -> object:
                 _num(true),
                 _pct(est, true),
             )
-        table.add_row("", "cond(phi)", f"{res.estimate.condition:.0f}", "", "", end_section=True)
+        table.add_row("", "cond(phi) (3.54)", f"{res.estimate.condition:.0f}", "", "")
+        v = res.validation
+        table.add_row("", "residual / torque RMS", f"{v.relative_residual:.3f}", "", "")
+        table.add_row(
+            "", "r(residual, input) (3.77)", f"{v.input_correlation:+.3f}", "", "", end_section=True
+        )
     return table
 
 
