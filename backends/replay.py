@@ -33,6 +33,8 @@ from suture_engine.runtime.operator import OperatorEvent
 __all__ = ["EndOfRecording", "ReplayBackend", "recorded_operator_events"]
 
 _DURATION = re.compile(r"duration=([-+0-9.eE]+)")
+_VELOCITY = re.compile(r"velocity=\[([^\]]*)\]")
+_STIFFNESS = re.compile(r"stiffness=([-+0-9.eE]+)")
 
 
 class EndOfRecording(BackendError):
@@ -143,6 +145,12 @@ class ReplayBackend:
         """Nothing to do: the recorded measurements already felt the force."""
         del robot, force, duration
 
+    def apply_operator_hand(
+        self, robot: str, velocity: tuple[float, float, float], stiffness: float, duration: float
+    ) -> None:
+        """Nothing to do: the recorded measurements already felt the hand."""
+        del robot, velocity, stiffness, duration
+
     def step(self) -> None:
         """Move to the next recorded tick."""
         self.tick += 1
@@ -181,6 +189,9 @@ def recorded_operator_events(reader: Any, rate: float) -> _ReplayOperator:
         detail = d.get("detail") or ""
         m = _DURATION.search(detail)
         force = d.get("force")
+        vel = _VELOCITY.search(detail)
+        stiff = _STIFFNESS.search(detail)
+        velocity = tuple(float(v) for v in vel.group(1).split(",")) if vel else None
         ev = OperatorEvent(
             action=d["action"],
             step=d.get("target_state"),
@@ -188,6 +199,8 @@ def recorded_operator_events(reader: Any, rate: float) -> _ReplayOperator:
             force=tuple(force) if force is not None else None,
             duration=float(m.group(1)) if m else 0.0,
             source=d.get("source") or "replay",
+            velocity=velocity,  # type: ignore[arg-type]
+            stiffness=float(stiff.group(1)) if stiff else 0.0,
         )
         events.setdefault(round(msg.log_time_ns / period_ns), []).append(ev)
     return _ReplayOperator(events, rate)

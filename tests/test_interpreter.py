@@ -274,3 +274,41 @@ def test_manual_mode_uses_the_interrupted_steps_fixture_when_it_has_one() -> Non
         assert s.final_state == "manual"
         moved[name] = float(np.abs(be.q["endobot_1"] - q0).max())
     assert moved["plain"] > 10 * moved["fixture"] > 0.0
+
+
+def test_simulated_hand_drags_the_tool_in_manual_and_replays(tmp_path: Path) -> None:
+    from suture_engine.runtime.run import replay_trace
+
+    result = _run(tmp_path, "ops-push.yaml")
+    assert result.summary.outcome == "succeeded"
+    [push] = [m.data for m in _messages(result.trace, "/operator") if m.data["action"] == "push"]
+    assert "velocity=[0.0, 0.02, 0.0]" in push["detail"] and "stiffness=100.0" in push["detail"]
+    q = {
+        round(m.log_time_ns / 1e6): np.array(m.data["position"])
+        for m in _messages(result.trace, "/joint_state/endobot_1")
+    }
+    assert np.abs(q[450] - q[200]).max() > 1e-3  # dragged while in Manual
+    check = replay_trace(result.trace, check=True)
+    assert check.ok, check.diff
+
+
+def test_summary_has_no_nan() -> None:
+    from suture_engine.runtime.summary import RunSummary
+
+    s = RunSummary(
+        "p",
+        "succeeded",
+        "end",
+        1.0,
+        1.0,
+        1.0,
+        1e3,
+        0.0,
+        None,
+        [],
+        0,
+        0,
+        {"k": float("nan"), "x": [1.0, float("inf")]},
+    )
+    d = s.to_dict()
+    assert d["metrics"] == {"k": None, "x": [1.0, None]}

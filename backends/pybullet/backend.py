@@ -90,6 +90,7 @@ class PyBulletBackend:
         self.tick = 0
         self._tools: dict[str, ToolState] = {}
         self._forces: list[tuple[str, np.ndarray, int]] = []
+        self._hands: list[list[Any]] = []
         self._geometry = SceneGeometry()
         self._p: Any = None
 
@@ -123,6 +124,7 @@ class PyBulletBackend:
         self.robots = {}
         self._tools = {}
         self._forces = []
+        self._hands = []
         self.tick = 0
         base_positions = {}
         for i, (name, (pos, rpy, tool)) in enumerate(sorted(self._bases(scene).items())):
@@ -203,11 +205,40 @@ class PyBulletBackend:
         ticks = max(1, round(duration / self.dt))
         self._forces.append((robot, np.array(force, dtype=np.float64), self.tick + ticks))
 
+    def apply_operator_hand(
+        self, robot: str, velocity: tuple[float, float, float], stiffness: float, duration: float
+    ) -> None:
+        """The surgeon's hand: it starts at the tool tip, moves at ``velocity`` [m/s] (world
+        frame) for ``duration`` [s] and drags the tip through a spring of ``stiffness``
+        [N/m], the same in every direction: F = K (x_hand - x_tip)."""
+        if robot not in self.robots:
+            raise BackendError(self.name, f"no robot named {robot!r}")
+        ticks = max(1, round(duration / self.dt))
+        self._hands.append(
+            [robot, None, np.array(velocity, dtype=np.float64), stiffness, self.tick, ticks]
+        )
+
+    def _hand_forces(self) -> list[tuple[str, np.ndarray, int]]:
+        out = []
+        keep = []
+        for hand in self._hands:
+            robot, x0, v, k, start, ticks = hand
+            if self.tick >= start + ticks:
+                continue
+            keep.append(hand)
+            tip, _ = self.robots[robot].true_tool_pose()
+            if x0 is None:
+                x0 = hand[1] = np.array(tip)
+            x_hand = x0 + v * ((self.tick - start) * self.dt)
+            out.append((robot, k * (x_hand - tip), self.tick + 1))
+        self._hands = keep
+        return out
+
     def step(self) -> None:
         """Advance the world by one period (external forces re-applied each step)."""
         p = self._need()
         self._forces = [f for f in self._forces if self.tick < f[2]]
-        for name, force, _until in self._forces:
+        for name, force, _until in self._forces + self._hand_forces():
             sim = self.robots[name]
             tip, _ = sim.true_tool_pose()
             p.applyExternalForce(

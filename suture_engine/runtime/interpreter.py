@@ -222,6 +222,14 @@ class Interpreter:
         a = self.automaton
         for ev in self.operator_source.poll(obs.t, a.state, a.step_name, a.mode.value):
             self.operator_events += 1
+            if ev.action == "push":
+                push = getattr(self.backend, "apply_operator_hand", None)
+                if push is None or ev.robot is None or ev.velocity is None:
+                    self.recorder.operator(time_ns, ev, False, "backend has no simulated hand")
+                else:
+                    push(ev.robot, ev.velocity, ev.stiffness, ev.duration)
+                    self.recorder.operator(time_ns, ev, True, "")
+                continue
             if ev.action == "force":
                 apply = getattr(self.backend, "apply_external_force", None)
                 if apply is None or ev.robot is None or ev.force is None:

@@ -14,9 +14,15 @@ Two sources, one interface (:meth:`poll` once per tick):
           robot: endobot_1
           force: [0.0, 0.0, -1.0]   # [N], world frame
           duration: 0.5 s
+        - at: 2.0 s
+          do: push           # the surgeon's hand moves at a velocity and drags the
+          robot: endobot_1   # tool tip through an impedance: F = K (x_hand - x_tip)
+          velocity: [0.01, 0.0, 0.0]   # [m/s], world frame, from the tip's position
+          stiffness: 200 N/m
+          duration: 1 s
 
   Actions: ``lock``, ``manual``, ``resume`` (optional ``step``), ``abort``,
-  ``force``. Each event fires once. Errors name the file, line and column.
+  ``force``, ``push``. Each event fires once. Errors name the file, line and column.
 - :class:`InteractiveOperator` reads single keys from the terminal:
   ``l`` lock, ``m`` manual, ``r`` resume, ``a`` abort.
 """
@@ -44,7 +50,8 @@ __all__ = [
     "load_operator_file",
 ]
 
-Action = Literal["lock", "manual", "resume", "abort", "force"]
+Action = Literal["lock", "manual", "resume", "abort", "force", "push"]
+_STIFFNESS = re.compile(r"^\s*([-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)\s*(N/m|N/mm)?\s*$")
 _TIME = re.compile(r"^\s*([-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)\s*(s|ms|min)?\s*$")
 _SCALE = {"s": 1.0, "ms": 1e-3, "min": 60.0, None: 1.0}
 _WHEN = re.compile(r"^\s*(state|mode)\s*=\s*([A-Za-z0-9_\-./~]+)\s*$")
@@ -92,7 +99,19 @@ class _Event(BaseModel):
     step: str | None = None
     robot: str | None = None
     force: tuple[float, float, float] | None = None
+    velocity: tuple[float, float, float] | None = None
+    stiffness: float = Field(default=200.0, gt=0.0)
     duration: float = Field(default=0.0, ge=0.0)
+
+    @field_validator("stiffness", mode="before")
+    @classmethod
+    def _stiffness(cls, v: Any) -> Any:
+        if isinstance(v, str):
+            m = _STIFFNESS.match(v)
+            if not m:
+                raise ValueError(f"expected a stiffness such as '200 N/m', found {v!r}")
+            return float(m.group(1)) * (1000.0 if m.group(2) == "N/mm" else 1.0)
+        return v
 
     @field_validator("at", "duration", mode="before")
     @classmethod
@@ -118,6 +137,10 @@ class _Event(BaseModel):
             raise ValueError("a 'force' event needs 'robot' and 'force' [N]")
         if self.do != "force" and self.force is not None:
             raise ValueError("'force' is only for 'do: force'")
+        if self.do == "push" and (self.velocity is None or self.robot is None):
+            raise ValueError("a 'push' event needs 'robot' and 'velocity' [m/s]")
+        if self.do != "push" and self.velocity is not None:
+            raise ValueError("'velocity' is only for 'do: push'")
         if self.step is not None and self.do != "resume":
             raise ValueError("'step' is only for 'do: resume'")
         return self
@@ -134,13 +157,15 @@ class OperatorEvent:
     """One operator event as the interpreter receives it.
 
     Attributes:
-        action: lock, manual, resume, abort or force.
+        action: lock, manual, resume, abort, force or push.
         step: the step to resume at (None: the interrupted one).
         robot: the robot a force acts on.
-        force: the force at the tool tip [N], world frame.
-        duration: how long the force acts [s].
+        force: the force at the tool tip [N], world frame (``force``).
+        duration: how long the force or push acts [s].
         source: "scripted", "interactive" or "replay".
         index: the event's position in its file (-1 otherwise).
+        velocity: the hand's velocity [m/s], world frame (``push``).
+        stiffness: the hand's impedance stiffness [N/m] (``push``).
     """
 
     action: str
@@ -150,6 +175,8 @@ class OperatorEvent:
     duration: float = 0.0
     source: str = "scripted"
     index: int = -1
+    velocity: tuple[float, float, float] | None = None
+    stiffness: float = 0.0
 
 
 def _node_at(
@@ -207,7 +234,12 @@ def load_operator_file(path: str | Path) -> list[tuple[_Event, OperatorEvent]]:
             dotted,
         ) from None
     return [
-        (e, OperatorEvent(e.do, e.step, e.robot, e.force, e.duration, "scripted", i))
+        (
+            e,
+            OperatorEvent(
+                e.do, e.step, e.robot, e.force, e.duration, "scripted", i, e.velocity, e.stiffness
+            ),
+        )
         for i, e in enumerate(parsed.events)
     ]
 

@@ -185,6 +185,8 @@ class TraceRecorder(Recorder):
             msg["force"] = _floats(event.force)
         if event.duration:
             msg["detail"] += f"; duration={event.duration!r}"
+        if event.velocity is not None:
+            msg["detail"] += f"; velocity={list(event.velocity)!r}; stiffness={event.stiffness!r}"
         self.writer.write(self._ch.OPERATOR, time_ns, msg)
 
     def event(self, time_ns: int, name: str, kind: str, state: str, detail: str) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import tempfile
 from collections.abc import Mapping
@@ -56,10 +57,21 @@ class RunSummary:
     ticks: int = 0
 
     def to_dict(self) -> dict[str, Any]:
-        """A JSON-ready dict."""
+        """A JSON-ready dict; non-finite numbers (NaN, inf) become ``None`` (JSON has none)."""
         out = asdict(self)
         out["metrics"] = dict(self.metrics)
-        return out
+        cleaned: dict[str, Any] = _finite(out)
+        return cleaned
+
+
+def _finite(value: Any) -> Any:
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, dict):
+        return {k: _finite(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_finite(v) for v in value]
+    return value
 
 
 def write_summary(path: str | Path, summary: RunSummary) -> Path:
@@ -69,7 +81,7 @@ def write_summary(path: str | Path, summary: RunSummary) -> Path:
     fd, tmp = tempfile.mkstemp(prefix=".summary-", suffix=".json", dir=target.parent)
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            json.dump(summary.to_dict(), fh, indent=2, sort_keys=True)
+            json.dump(summary.to_dict(), fh, indent=2, sort_keys=True, allow_nan=False)
             fh.write("\n")
             fh.flush()
             os.fsync(fh.fileno())

@@ -68,12 +68,14 @@ class IdealBackend:
         self.tau: dict[str, np.ndarray] = {}
         self.tools: dict[str, ToolState] = {}
         self._forces: list[tuple[str, np.ndarray, int]] = []
+        self._hands: list[tuple[str, np.ndarray, float, int]] = []
 
     def reset(self, scene: Any = None, seed: int = 0) -> Measurement:
         """Put the robots at their start poses; ``scene`` and ``seed`` are not needed."""
         del scene, seed
         self.tick = 0
         self._forces = []
+        self._hands = []
         for r in self.robots:
             self.q[r] = np.array(self._q0.get(r, DEFAULT_Q), dtype=np.float64)
             self.qd[r] = np.zeros(N_JOINTS)
@@ -86,6 +88,8 @@ class IdealBackend:
         for name, force, until in self._forces:
             if name == robot and self.tick < until:
                 f += force
+        if self._hands:
+            f += self._hand_force(robot)
         return f
 
     def observe(self) -> Measurement:
@@ -117,6 +121,28 @@ class IdealBackend:
         """Push the tool tip of ``robot`` with ``force`` [N] for ``duration`` [s]."""
         ticks = max(1, round(duration / self.dt))
         self._forces.append((robot, np.array(force, dtype=np.float64), self.tick + ticks))
+
+    def apply_operator_hand(
+        self, robot: str, velocity: tuple[float, float, float], stiffness: float, duration: float
+    ) -> None:
+        """A hand starting at the tool tip, moving at ``velocity`` [m/s] (base frame), pulling
+        the tip through a spring of ``stiffness`` [N/m] for ``duration`` [s]."""
+        from suture_engine.robot.kinematics import forward_kinematics
+
+        ticks = max(1, round(duration / self.dt))
+        x0 = np.asarray(forward_kinematics(self.q[robot]).position)
+        v = np.array(velocity, dtype=np.float64)
+        for k in range(ticks):  # the hand's force, precomputed per tick as the tip moves
+            self._hands.append((robot, x0 + v * (k * self.dt), stiffness, self.tick + k))
+
+    def _hand_force(self, robot: str) -> np.ndarray:
+        from suture_engine.robot.kinematics import forward_kinematics
+
+        f = np.zeros(3)
+        for name, x_hand, k, tick in self._hands:
+            if name == robot and tick == self.tick:
+                f += k * (x_hand - np.asarray(forward_kinematics(self.q[robot]).position))
+        return f
 
     def step(self) -> None:
         """Integrate one period: M q'' = tau - G(q) + J^T F - b q'."""
