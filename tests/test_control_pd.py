@@ -88,3 +88,30 @@ def test_gains_at_workspace_centre_against_thesis_5_17() -> None:
     assert gains.kd[0] == pytest.approx(4.4, rel=0.10)
     assert gains.kp[2] == pytest.approx(w * w * 0.0006, rel=1e-9)
     assert gains.kp[3] == pytest.approx(w * w * 0.2451, rel=1e-9)
+
+
+def test_gravity_compensation_holds_the_simulated_robot_still() -> None:
+    """Manual mode (5.1): with tau = G(q) the PyBullet robot, friction off, stays put."""
+    import pybullet as p
+
+    from backends.pybullet.robot import EndoBotSim
+    from suture_engine.control.model import endobot_control_model
+
+    client = p.connect(p.DIRECT)
+    try:
+        p.setGravity(0, 0, -9.81, physicsClientId=client)
+        q0 = np.array([0.3, -0.2, 0.1, 0.08])
+        sim = EndoBotSim(client, q0=q0, friction=False, include_tool=False, saturate=False)
+        comp = GravityCompensation(endobot_control_model())
+        for _ in range(500):
+            q = sim.measure().joints.values
+            sim.step(comp.update(q))
+        held = sim.true_state().q
+        sim.reset(q0)
+        for _ in range(500):
+            sim.step(np.zeros(4))
+        fallen = sim.true_state().q
+    finally:
+        p.disconnect(physicsClientId=client)
+    assert np.max(np.abs(held - q0)) < 1e-6
+    assert np.max(np.abs(fallen - q0)) > 1e-2  # without compensation it moves

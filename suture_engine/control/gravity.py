@@ -35,5 +35,9 @@ class GravityCompensation:
 
     def update(self, q: FloatArray) -> FloatArray:
         """Torques [N m, N] that hold the arm at ``q`` [rad, m]; internal storage."""
-        np.multiply(self.model.gravity_vector(q), self.scale, out=self._tau)
+        g = self.model.gravity_vector(q)
+        if self.scale == 1.0:
+            self._tau[:] = g
+        else:
+            np.multiply(g, self.scale, out=self._tau)
         return self._tau
