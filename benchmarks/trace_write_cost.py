@@ -7,8 +7,11 @@ with the default writer settings, and prints the time spent in
 ``TraceWriter.write`` (messages are generated beforehand, so only writing counts)
 and the file size scaled to one simulated minute.
 
+With ``--trace FILE`` it re-writes the messages of a recorded trace instead (the
+channel mix and values of a real run).
+
 Usage:
-    python benchmarks/trace_write_cost.py [--seconds 10]
+    python benchmarks/trace_write_cost.py [--seconds 10] [--trace runs/x/trace.mcap]
 """
 
 from __future__ import annotations
@@ -59,12 +62,23 @@ def _run(messages: list[tuple[str, int, Any]], seconds: float, **kwargs: Any) ->
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seconds", type=float, default=10.0, help="simulated duration [s]")
+    parser.add_argument("--trace", type=Path, help="re-write this recorded trace's messages")
     args = parser.parse_args()
-    messages = list(synthetic_messages(args.seconds))
-    rate = len(messages) / args.seconds
+    if args.trace is not None:
+        reader = TraceReader(args.trace)
+        messages = [
+            (m.topic, m.log_time_ns, m.data) for m in reader.messages() if m.topic != "/meta"
+        ]
+        seconds = (messages[-1][1] - messages[0][1]) / 1e9 + 1e-3
+        source = f"the messages of {args.trace}"
+    else:
+        messages = list(synthetic_messages(args.seconds))
+        seconds = args.seconds
+        source = "synthetic messages (1 kHz, 2 robots)"
+    rate = len(messages) / seconds
     print(
-        f"{len(messages)} messages over {args.seconds:g} s simulated "
-        f"({rate:.0f} messages per simulated second, 1 kHz, 2 robots)"
+        f"{len(messages)} {source} over {seconds:g} s simulated "
+        f"({rate:.0f} messages per simulated second)"
     )
     header = (
         f"{'setting':<34} {'us/message':>10} {'tick median us':>15} "
@@ -77,7 +91,7 @@ def main() -> None:
         ("lz4, fsync", {"compression": "lz4"}),
         ("zstd + message indexes, fsync", {"message_index": True}),
     ):
-        r = _run(messages, args.seconds, **kwargs)
+        r = _run(messages, seconds, **kwargs)
         print(
             f"{label:<34} {r['us_per_message']:>10.2f} {r['tick_median_us']:>15.1f} "
             f"{r['tick_p99_us']:>12.1f} {r['mb_per_min']:>11.1f}"
