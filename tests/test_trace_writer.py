@@ -130,6 +130,17 @@ def test_byte_identical_across_processes(tmp_path: Path) -> None:
     assert here.read_bytes() == there.read_bytes()
 
 
+def test_key_order_does_not_change_the_bytes(tmp_path: Path) -> None:
+    a, b = tmp_path / "a.mcap", tmp_path / "b.mcap"
+    meta_a = TraceMeta("p", 1, 1000.0, params={"x": 1, "y": {"b": 2, "a": 3}})
+    meta_b = TraceMeta("p", 1, 1000.0, params={"y": {"a": 3, "b": 2}, "x": 1})
+    with TraceWriter(a, meta_a) as w:
+        w.write("/events", 5, {"name": "n", "kind": "info", "state": "s"})
+    with TraceWriter(b, meta_b) as w:
+        w.write("/events", 5, {"state": "s", "kind": "info", "name": "n"})
+    assert a.read_bytes() == b.read_bytes()
+
+
 def test_different_messages_give_different_files(tmp_path: Path) -> None:
     a, b = tmp_path / "a.mcap", tmp_path / "b.mcap"
     meta = TraceMeta("p", seed=1, control_rate_hz=1000.0)
