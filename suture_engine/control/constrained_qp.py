@@ -475,7 +475,10 @@ class ConstrainedQP:
         zl = z.tolist() if z is not None else []
         ok = status == "solved" and len(zl) == self.n and all(map(math.isfinite, zl))
         if ok:
-            self._qdot[:] = zl[:_N]
+            # The joint box is hard: clip the solver's tolerance-level excursions
+            # (eps_abs + eps_rel * |z|) so the command never leaves it.
+            lo, hi = self._l_qd.tolist(), self._u_qd.tolist()
+            self._qdot[:] = [min(max(zl[j], lo[j]), hi[j]) for j in range(_N)]
             self.consecutive_failures = 0
             slack = max(map(abs, zl[_N:])) if self._m_soft else 0.0
             active = self._active(zl)
