@@ -170,6 +170,67 @@ def test_hook_catches_and_lifts_thread_only_when_extended(extend: bool) -> None:
         assert abs(lifted) < 0.005
 
 
+def _winding(points: np.ndarray, axis_xy: np.ndarray) -> float:
+    """Turns the polyline makes around a vertical axis (angles on a finely resampled curve)."""
+    fine = np.vstack(
+        [
+            points[i] + (points[i + 1] - points[i]) * f
+            for i in range(len(points) - 1)
+            for f in np.linspace(0.0, 1.0, 20, endpoint=False)
+        ]
+    )
+    ang = np.unwrap(np.arctan2(fine[:, 1] - axis_xy[1], fine[:, 0] - axis_xy[0]))
+    return float((ang[-1] - ang[0]) / (2 * np.pi))
+
+
+def test_thread_wraps_around_an_instrument_shaft() -> None:
+    """A grasper carries the thread's end once around another grasper's shaft: the thread
+    winds about one more turn around the shaft's axis (it collides, it does not pass)."""
+    import pybullet as p
+
+    from backends.pybullet.suture import Suture, configure_physics, straight_path
+
+    c = p.connect(p.DIRECT)
+    try:
+        configure_physics(c)
+        sut = Suture.create(
+            c,
+            straight_path((-0.15, 0.0, 0.03), (1.0, 0.0, 0.0), 0.15),
+            SutureParams(length=0.15, needle=False),
+        )
+        line = sut.centerline()
+        down = p.getQuaternionFromEuler([math.pi, 0.0, 0.0])
+        axis = np.array([-0.11, 0.006])
+        tools = [
+            Grasper.create(c, "L", tuple(line[0]), suture=sut, hook=False),
+            Grasper.create(c, "R", tuple(line[-1]), suture=sut, hook=False),
+            Grasper.create(c, "B", (axis[0], axis[1], -0.01), down, hook=False, shaft=0.08),
+        ]
+        left, right, _ = tools
+
+        def step() -> None:
+            for tool in tools:
+                tool.step()
+            sut.pre_step()
+            p.stepSimulation(physicsClientId=c)
+
+        left.close()
+        right.close()
+        for _ in range(200):
+            step()
+        start = _winding(sut.centerline(), axis)
+        a0 = math.atan2(line[-1][1] - axis[1], line[-1][0] - axis[0])
+        for k in range(1, 3001):  # one turn and a bit, spiralling in, above the left strand
+            f = k / 3000
+            a, r = a0 + (2 * math.pi + 0.6) * f, 0.1 - 0.06 * f
+            right.set_pose((axis[0] + r * math.cos(a), axis[1] + r * math.sin(a), 0.05))
+            step()
+        wound = _winding(sut.centerline(), axis)
+    finally:
+        p.disconnect(physicsClientId=c)
+    assert wound - start > 0.9
+
+
 def test_stitcher_passes_needle_to_other_jaw() -> None:
     """The needle opens with jaw 0 (-x); after a hand-over with closed jaws it opens with
     jaw 1 (+x)."""
