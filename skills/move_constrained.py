@@ -94,6 +94,9 @@ class MoveConstrained(Skill):
     SETTLE_S: ClassVar[float] = 1.0
     """Time allowed after the reference's end to reach the tolerance [s], extended by
     the time the extension-rate bound (4.11) was active."""
+    CAPTURE_S: ClassVar[float] = 0.5
+    """Shared mode: the first seconds of the state, while the fixture pulls the tool onto
+    it, are left out of the metrics [s]."""
     MIN_DEVIATION: ClassVar[float] = 1e-5
     """Smallest peak deviation [m] from which a stiffness is reported; below it the
     ratio max|Fc| / max|e| measures model noise, not the virtual spring."""
@@ -158,7 +161,11 @@ class MoveConstrained(Skill):
 
         import numpy as np
 
-        from suture_engine.control.constrained_qp import ConstrainedQP, extension_rate_bound
+        from suture_engine.control.constrained_qp import (
+            ConstrainedQP,
+            JointLimits,
+            extension_rate_bound,
+        )
         from suture_engine.control.shared import task_vector
         from suture_engine.robot.params import E1
         from suture_engine.runtime.trajectory import world_to_base
@@ -182,7 +189,8 @@ class MoveConstrained(Skill):
         if p.mode == "shared":
             return
         has_rate = p.max_tension is not None
-        self._qp = ConstrainedQP([self._fixture], extension_rate=has_rate)
+        limits = JointLimits.from_params(horizon=float(ctx.dt))
+        self._qp = ConstrainedQP([self._fixture], limits=limits, extension_rate=has_rate)
         if has_rate:
             fs = float(ctx.params.get("suture_static_friction", self.SUTURE_STATIC_FRICTION))
             fv = float(
@@ -280,8 +288,9 @@ class MoveConstrained(Skill):
                 TaskSpaceGains(self.STIFFNESS, self.DAMPING),
                 gravity=grav,
             )
-            np.maximum(self._peak_e, np.abs(out.deviation), out=self._peak_e)
-            np.maximum(self._peak_f, np.abs(out.constraint_force), out=self._peak_f)
+            if t >= self.CAPTURE_S:
+                np.maximum(self._peak_e, np.abs(out.deviation), out=self._peak_e)
+                np.maximum(self._peak_f, np.abs(out.constraint_force), out=self._peak_f)
             command = Command({self._robot: RobotCommand.torque(out.tau)})
             done = p.duration is not None and t >= p.duration
             return StepResult(command, SkillStatus.SUCCESS if done else SkillStatus.RUNNING)

@@ -119,14 +119,18 @@ def test_shared_mode_returns_the_6_24_torques_and_reports_stiffness() -> None:
             "fixture": "line",
             "direction": tuple(direction),
             "mode": "shared",
-            "duration": 0.002,
+            "duration": 1.0,
         }
     )
     on = 0.1 * direction / np.linalg.norm(direction)
     q = endobot.inverse_kinematics(on + np.array([0.003, 0.0, 0.0]), 0.2)
     obs = _obs(0.0, q)
     skill.start(_ctx(obs))
-    res = skill.step(_ctx(obs), obs)
+    # While the fixture captures the tool (CAPTURE_S), nothing enters the metrics.
+    far = endobot.inverse_kinematics(on + np.array([0.02, 0.0, 0.0]), 0.2)
+    skill.step(_ctx(obs), _obs(0.1, far))
+    assert np.isnan(skill.metrics()["constraint_stiffness_N_per_m"])
+    res = skill.step(_ctx(obs), _obs(MoveConstrained.CAPTURE_S, q))
     cmd = res.command.robots[ROBOT]
     assert cmd.mode is CommandMode.TORQUE
     x = task_vector(q)
@@ -137,7 +141,7 @@ def test_shared_mode_returns_the_6_24_torques_and_reports_stiffness() -> None:
     assert m["desired_stiffness_N_per_m"] == MoveConstrained.STIFFNESS
     assert m["constraint_stiffness_N_per_m"] == pytest.approx(MoveConstrained.STIFFNESS)
     assert m["max_deviation_m"] == pytest.approx(np.abs(line.value(x)).max())
-    assert skill.step(_ctx(obs), _obs(0.003, q)).status is SkillStatus.SUCCESS
+    assert skill.step(_ctx(obs), _obs(1.0, q)).status is SkillStatus.SUCCESS
 
 
 def test_shared_mode_reports_no_stiffness_without_a_push() -> None:
@@ -149,5 +153,5 @@ def test_shared_mode_reports_no_stiffness_without_a_push() -> None:
     q = endobot.inverse_kinematics(on + np.array([1e-8, 0.0, 0.0]), 0.0)  # noise-level offset
     obs = _obs(0.0, q)
     skill.start(_ctx(obs))
-    skill.step(_ctx(obs), obs)
+    skill.step(_ctx(obs), _obs(1.0, q))
     assert np.isnan(skill.metrics()["constraint_stiffness_N_per_m"])
