@@ -152,6 +152,7 @@ class Interpreter:
         self._waiting_ticks = 0
         self._last_skill: Any = None
         self._tension: dict[str, float] = {}
+        self.interrupted = False
 
     # ----------------------------------------------------------------- skills
     def _base_poses(self) -> dict[str, Any]:
@@ -404,6 +405,9 @@ class Interpreter:
         try:
             while self.tick():
                 pass
+        except KeyboardInterrupt:  # Ctrl-C: end like an operator abort, trace closed
+            self.stop_reason = "interrupted (Ctrl-C)"
+            self.interrupted = True
         finally:
             self.wall_time_s = time.perf_counter() - t0
             self.recorder.close()
@@ -415,6 +419,8 @@ class Interpreter:
         """The run's summary so far."""
         a = self.automaton
         outcome = a.outcome.value if a.outcome is not None else "failed"
+        if self.interrupted and a.outcome is None:
+            outcome = "aborted"
         sim = self.tick_index * self.dt
         wall = self.wall_time_s
         metrics = dict(self.metrics)

@@ -242,7 +242,12 @@ def run_procedure(
     options = dict(backend_options or {})
     if gui:
         options["gui"] = True
-    be = registry.create(backend, **options)
+    try:
+        be = registry.create(backend, **options)
+    except TypeError as exc:  # an option this backend does not take (e.g. --gui)
+        from backends.base import BackendError
+
+        raise BackendError(backend, f"unsupported option: {exc}") from None
     out_dir = Path(out) if out is not None else _new_run_dir(Path("runs"), proc.name, seed)
     out_dir.mkdir(parents=True, exist_ok=True)
     trace = out_dir / "trace.mcap"
