@@ -98,19 +98,19 @@ class JointPlan:
 JOINT_PLANS: tuple[JointPlan, JointPlan, JointPlan, JointPlan] = (
     JointPlan(
         GravityShape.SINE, (0, 0, 0, 0.05), 0.5, (0.2, 5.0), 0.0, 0.0, (-0.5, 0.5),
-        (0.15, 0.3, 0.6), 15.0,
+        (0.25, 0.5, 1.0), 15.0,
     ),
     JointPlan(
         GravityShape.SINE, (0, 0, 0, 0.05), 0.5, (0.2, 5.0), 0.0, 0.0, (-0.5, 0.5),
-        (0.15, 0.3, 0.6), 15.0,
+        (0.25, 0.5, 1.0), 15.0,
     ),
     JointPlan(
         GravityShape.NONE, (0, 0, 0, 0.05), 1.0, (1.0, 40.0), 0.3, 0.0, (-1.0, 1.0),
-        (0.2, 0.5, 1.0), 40.0,
+        (0.5, 1.0, 2.0), 40.0,
     ),
     JointPlan(
         GravityShape.CONSTANT, (0, 0, 0, 0.10), 0.6, (0.2, 5.0), 20.0, 0.0, (0.04, 0.16),
-        (0.01, 0.025, 0.05), 15.0,
+        (0.02, 0.04, 0.08), 15.0,
     ),
 )  # fmt: skip
 """Default plan per joint (yaw, pitch, roll, insertion)."""
@@ -402,7 +402,10 @@ def identify_robot(
         joints: which joints to identify.
 
     Returns:
-        The report.
+        The report. As in Tables 3.3-3.4, ``Fc`` and ``Fv`` are those of the
+        constant-velocity loop; ``I`` and ``ml`` come from the excitation record
+        (the differential fit estimates friction alongside, but only uses it to
+        separate the columns).
     """
     p = params or E1
     kind = ExcitationKind(signal)
@@ -420,6 +423,9 @@ def identify_robot(
                                  friction=friction, window=50)  # fmt: skip
             else:
                 est = fit_differential(rec.q, rec.tau, DT, pl.shape, cutoff_hz=cutoff)
+            # As in Tables 3.3-3.4: friction comes from the velocity loop, I and ml
+            # from the excitation record.
+            est = est._replace(coulomb=friction.coulomb, viscous=friction.viscous)
             trim = 0.5
             rows, tau_f = differential_rows(rec.q, rec.tau, DT, pl.shape, cutoff_hz=cutoff,
                                             trim=trim)  # fmt: skip
