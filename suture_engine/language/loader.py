@@ -352,6 +352,13 @@ def _resolve_params(
                 )
     for name, spec in head.params.items():
         where: PathKey = ("params", name)
+        if spec.type == "quantity" and spec.unit is None:
+            add(
+                source.problem(
+                    "missing-field", f"quantity parameter {name!r} needs a `unit`", where
+                )
+            )
+            continue
         # the declaration itself: default, bounds and choices must convert
         for key in ("default", "min", "max"):
             raw = getattr(spec, key)
