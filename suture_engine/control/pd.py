@@ -10,9 +10,9 @@ asymptotically stable for any positive gains.
 Against the thesis' 7 Hz gains (5.17-5.18): the printed
 ``Kp = diag(97, 97, 1.93, 193)`` and ``Kd = diag(4.4, 4.4, 0.088, 8.8)`` follow
 from a frozen ``M ~ diag(0.050, 0.050, 0.001, 0.100)``. Table 3.4's E1 values
-at the workspace centre (``q4 = 0.10`` m) give ``M = diag(0.0462, 0.0419,
+at the workspace centre (``q4 = 0.10`` m) give ``M = diag(0.0462, 0.0416,
 0.0006, 0.2451)``, hence ``Kp = diag(89.5, 80.6, 1.16, 474)`` and
-``Kd = diag(4.07, 3.66, 0.053, 21.6)``: yaw and pitch within 8 % and 17 % of the
+``Kd = diag(4.07, 3.66, 0.053, 21.6)``: yaw and pitch 8 % and 17 % below the
 printed gains; roll (0.6x) and insertion (2.45x) follow Table 3.4's roll inertia
 and insertion mass, not the values behind (5.17).
 """
