@@ -2,12 +2,14 @@
 
 from __future__ import annotations
 
+import atexit
 import random
+import shutil
 import tempfile
 from pathlib import Path
 
 import yaml
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 from suture_engine.language.loader import load_text
@@ -19,6 +21,10 @@ ROOT = Path(__file__).resolve().parent.parent
 PROCEDURES = ROOT / "procedures"
 BUNDLED = sorted(PROCEDURES.glob("*.yaml"))
 TEXTS = {p.name: p.read_text(encoding="utf-8") for p in BUNDLED}
+# a private copy of the bundled tree, so that mutants' use: and scene paths resolve
+_COPY = Path(tempfile.mkdtemp(prefix="suture-fuzz-"))
+atexit.register(shutil.rmtree, _COPY, ignore_errors=True)
+COPY = Path(shutil.copytree(PROCEDURES, _COPY / "procedures"))
 
 
 def _only_problems(text: str) -> None:
@@ -101,18 +107,10 @@ def _mutate(text: str, rng: random.Random) -> str:
     return "\n".join(lines) + "\n"
 
 
-@settings(suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(st.sampled_from(sorted(TEXTS)), st.integers(0, 2**32 - 1))
 def test_mutated_bundled_procedures(name: str, seed: int) -> None:
     text = _mutate(TEXTS[name], random.Random(seed))
-    # written next to the bundled ones so that their use: and scene paths resolve
-    with tempfile.NamedTemporaryFile(
-        "w", suffix=".yaml", dir=PROCEDURES, prefix=".fuzz-", delete=False
-    ) as handle:
-        handle.write(text)
-    path = Path(handle.name)
-    try:
-        for p in validate_file(path):
-            assert isinstance(p, Problem) and p.file and p.line >= 0
-    finally:
-        path.unlink()
+    path = COPY / "mutant.yaml"
+    path.write_text(text, encoding="utf-8")
+    for p in validate_file(path):
+        assert isinstance(p, Problem) and p.file and p.line >= 0
