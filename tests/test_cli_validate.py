@@ -127,3 +127,18 @@ def test_validate_imports_no_heavy_module() -> None:
         [sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, check=False
     )
     assert result.stdout.strip() == "0 []", result.stdout + result.stderr
+
+
+@pytest.mark.parametrize("path", BUNDLED, ids=lambda p: p.stem)
+def test_every_bundled_procedure_draws(path: Path) -> None:
+    from suture_engine.language.loader import load_procedure
+    from suture_engine.validation.graph import to_dot, to_mermaid
+
+    proc = load_procedure(path)
+    mermaid, dot = to_mermaid(proc), to_dot(proc)
+    assert mermaid.startswith("stateDiagram-v2\n") and dot.startswith("digraph ")
+    for i, state in enumerate(proc.states.values()):
+        assert f" as s{i}" in mermaid and f"  s{i} [label=" in dot
+        if state.skill is not None:
+            assert f"skill {state.skill}" in mermaid
+    assert dot.count("{") == dot.count("}")
