@@ -97,6 +97,19 @@ def vassiliev_from_jones(jones: dict[int, int]) -> tuple[int, int]:
     return -s2 // 6, -s3 // 36
 
 
+def seifert_alexander_coefficients(v: sympy.Matrix) -> list[int]:
+    """Coefficients of det(V - t V^T), lowest degree first.
+
+    The determinant has degree <= n (V is n x n); it is evaluated exactly at
+    t = 0..n (integer matrices) and interpolated, which is much faster than
+    a symbolic determinant.
+    """
+    n = v.shape[0]
+    points = [(k, int((v - k * v.T).det(method="bareiss"))) for k in range(n + 1)]
+    poly = sympy.Poly(sympy.interpolate(points, T), T)
+    return [int(c) for c in reversed(poly.all_coeffs())]
+
+
 def seifert_oracle(pd: list[tuple[int, int, int, int]]) -> tuple[tuple[int, ...], int, int]:
     """(normalised Alexander polynomial, determinant, writhe) computed by spherogram."""
     if not pd:
@@ -105,8 +118,7 @@ def seifert_oracle(pd: list[tuple[int, int, int, int]]) -> tuple[tuple[int, ...]
     v = sympy.Matrix(link.seifert_matrix())
     if v.shape[0] == 0:
         return (1,), 1, link.writhe()
-    poly = sympy.Poly(sympy.expand((v - T * v.T).det()), T)
-    coeffs = [int(c) for c in reversed(poly.all_coeffs())]
+    coeffs = seifert_alexander_coefficients(v)
     while coeffs and coeffs[0] == 0:
         coeffs.pop(0)
     if sum(coeffs) < 0:

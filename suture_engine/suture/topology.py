@@ -201,18 +201,24 @@ def simplify_polyline(points: ArrayLike, *, rel_tol: float = 1e-6) -> NDArray[np
 
 
 def close_curve(
-    points: ArrayLike, *, radius_factor: float = 10.0, arc_points: int = 12
+    points: ArrayLike,
+    *,
+    radius_factor: float = 10.0,
+    arc_points: int = 12,
+    centre: ArrayLike | None = None,
 ) -> tuple[NDArray[np.float64], int]:
     """Close an open curve far away from its knot.
 
-    Each end is extended radially from the curve's centre (its vertex
-    centroid) to a sphere of ``radius_factor`` times the curve's radius, and
+    Each end is extended radially from the knot's centre (by default the
+    vertex centroid) to a sphere of ``radius_factor`` times the curve's
+    radius about that centre, and
     the two far points are joined by a great-circle arc on that sphere.
 
     Args:
         points: N x 3 open polyline [m].
         radius_factor: closure sphere radius / curve radius.
         arc_points: points of the closing arc.
+        centre: the knot's centre [m]; default the vertex centroid.
 
     Returns:
         ``(closed, n_suture)``: the closed polygon (first point not
@@ -220,7 +226,7 @@ def close_curve(
         vertices.
     """
     pts = _as_points(points)
-    centre = pts.mean(axis=0)
+    centre = pts.mean(axis=0) if centre is None else np.asarray(centre, dtype=float)
     radius = float(np.max(np.linalg.norm(pts - centre, axis=1)))
     big = radius_factor * max(radius, 1e-12)
 
@@ -385,6 +391,26 @@ def project_gauss_code(
     return code, crossings
 
 
+def _crossing_centre(
+    pts: NDArray[np.float64], rng: np.random.Generator
+) -> NDArray[np.float64] | None:
+    """Where the open curve crosses itself most: the median of its crossings.
+
+    One generic projection of the open polyline (no closure); None when it
+    has no crossing (then the closure uses the centroid).
+    """
+    for direction in _random_directions(rng, 5):
+        # the open curve as a polygon whose closing edge runs far behind the
+        # viewer's back cannot be used; drop crossings on the closing edge
+        try:
+            _, crossings = project_gauss_code(pts, direction, n_suture=len(pts))
+        except _Degenerate:
+            continue
+        inner = [c.point for c in crossings if c.on_suture]
+        return np.median(np.array(inner), axis=0) if inner else None
+    return None
+
+
 def _random_directions(rng: np.random.Generator, n: int) -> NDArray[np.float64]:
     v = rng.normal(size=(n, 3))
     return v / np.linalg.norm(v, axis=1)[:, None]
@@ -447,8 +473,8 @@ def classify_knot(
     pts = simplify_polyline(points)
     if len(pts) < 2:
         raise InvalidCenterline(tuple(np.shape(points)), "needs at least two distinct points")
-    closed, n_sut = close_curve(pts, radius_factor=radius_factor)
     rng = np.random.default_rng(seed)
+    closed, n_sut = close_curve(pts, radius_factor=radius_factor, centre=_crossing_centre(pts, rng))
     # Project along random directions; keep the `projections` diagrams that
     # reduce to the fewest crossings out of `projections + spare` valid ones
     # (big diagrams cost O(c^3) and tell nothing more), then let them vote.
