@@ -92,7 +92,8 @@ class ReplayBackend:
             self.robots = tuple(sorted(self._q))
         self.last_tick = self._last_complete_tick()
         self.tick = 0
-        self.applied: list[Command] = []
+        self.last_applied: Command | None = None
+        self._tool = ToolState()
 
     def _last_complete_tick(self) -> int:
         """The last tick with positions and wrenches of every robot, consecutive from 0."""
@@ -114,7 +115,7 @@ class ReplayBackend:
         """
         del scene, seed
         self.tick = 0
-        self.applied = []
+        self.last_applied = None
         return self.observe()
 
     def observe(self) -> Measurement:
@@ -129,15 +130,15 @@ class ReplayBackend:
             r: RobotMeasurement(
                 np.array(self._q[r][self.tick], dtype=np.float64),
                 np.array(self._w[r][self.tick], dtype=np.float64),
-                ToolState(),
+                self._tool,
             )
             for r in self.robots
         }
         return Measurement(self.tick, self.tick * self.period_ns * 1e-9, robots)
 
     def apply(self, command: Command) -> None:
-        """Keep the command (the comparison reads the trace the engine writes)."""
-        self.applied.append(command)
+        """Keep the last command (the comparison reads the trace the engine writes)."""
+        self.last_applied = command
 
     def apply_external_force(
         self, robot: str, force: tuple[float, float, float], duration: float

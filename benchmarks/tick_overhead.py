@@ -26,12 +26,18 @@ ROOT = Path(__file__).resolve().parent.parent
 PROCEDURE = ROOT / "tests" / "procedures" / "constrained.yaml"
 
 
+SKILL_NS: list[int] = []
+"""CPU time of the skill's step (move-constrained, its QP included) in the last replay [ns]."""
+
+
 def _stats(ns: list[int]) -> tuple[float, float]:
     us = np.asarray(ns, dtype=float) / 1e3
     return float(np.median(us)), float(np.percentile(us, 99))
 
 
-def _replay(trace: Path, out: Path | None, cvx: Any = None) -> tuple[list[int], list[int]]:
+def _replay(
+    trace: Path, out: Path | None, cvx: Any = None
+) -> tuple[list[int], list[int], list[int]]:
     from backends.replay import ReplayBackend
     from suture_engine.runtime.interpreter import Interpreter
     from suture_engine.runtime.recorder import Recorder, TraceRecorder
@@ -63,22 +69,43 @@ def _replay(trace: Path, out: Path | None, cvx: Any = None) -> tuple[list[int], 
         max_time_s=float("inf"),
     )
     ticks: list[int] = []
+    cpu: list[int] = []
     cvx_ns: list[int] = []
     clock = time.perf_counter_ns
+    cpu_clock = time.thread_time_ns
+    skill_ns: list[int] = []
+
+    def timed(step: Any) -> Any:
+        def wrapper(ctx: Any, obs: Any) -> Any:
+            s0 = cpu_clock()
+            out = step(ctx, obs)
+            skill_ns.append(cpu_clock() - s0)
+            return out
+
+        return wrapper
+
     while True:
         active = interp.automaton.step_name == "insert"
+        skill = interp.automaton.active_skill
+        if skill is not None and not hasattr(skill, "_timed"):
+            skill.step = timed(skill.step)
+            skill._timed = True
+        c0 = cpu_clock()
         t0 = clock()
         going = interp.tick()
         dt = clock() - t0
+        dc = cpu_clock() - c0
         if active and interp.automaton.step_name == "insert":
             ticks.append(dt)
+            cpu.append(dc)
             if cvx is not None:
                 qp = interp.automaton.active_skill._qp
                 cvx_ns.append(cvx(qp))
         if not going:
             break
     recorder.close()
-    return ticks, cvx_ns
+    SKILL_NS[:] = skill_ns
+    return ticks, cpu, cvx_ns
 
 
 def _cvxpy_twin() -> Any:
@@ -117,17 +144,25 @@ def main() -> None:
         rec = run_procedure(PROCEDURE, backend="pybullet", out=Path(tmp) / "rec")
         trace = rec.trace
         _replay(trace, None)  # warm-up: imports, first-call costs
-        with_trace, _ = _replay(trace, Path(tmp) / "replay.mcap")
-        engine, _ = _replay(trace, None)
+        with_trace, with_trace_cpu, _ = _replay(trace, Path(tmp) / "replay.mcap")
+        engine, engine_cpu, _ = _replay(trace, None)
+        skill_cpu = list(SKILL_NS)
         try:
-            _, cvx = _replay(trace, None, _cvxpy_twin())
+            _, _, cvx = _replay(trace, None, _cvxpy_twin())
         except ImportError:
             cvx = []
     m_tr, p_tr = _stats(with_trace)
     m_en, p_en = _stats(engine)
     print(f"engine tick on the replay backend, move-constrained active ({len(engine)} ticks)")
+    print("wall clock:")
     print(f"  with trace writing : median {m_tr:7.1f} us   p99 {p_tr:7.1f} us")
     print(f"  trace off          : median {m_en:7.1f} us   p99 {p_en:7.1f} us")
+    print("CPU time of the thread (insensitive to other processes on a loaded machine):")
+    for label, ns in (("with trace writing", with_trace_cpu), ("trace off", engine_cpu)):
+        m, p = _stats(ns)
+        print(f"  {label:19s}: median {m:7.1f} us   p99 {p:7.1f} us")
+    m, p = _stats(skill_cpu)
+    print(f"  of which skill.step: median {m:7.1f} us   p99 {p:7.1f} us (move-constrained + QP)")
     if cvx:
         m_cv, p_cv = _stats(cvx)
         print(f"  cvxpy QP alone     : median {m_cv:7.1f} us   p99 {p_cv:7.1f} us")

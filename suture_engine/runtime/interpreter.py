@@ -34,7 +34,6 @@ from suture_engine.runtime.controller import ModeController
 from suture_engine.runtime.monitor import Invariant, Monitor, TensionEstimator
 from suture_engine.runtime.observation import (
     Command,
-    CommandMode,
     Measurement,
     Observation,
     RobotCommand,
@@ -373,7 +372,7 @@ class Interpreter:
             self.stop_reason = f"time limit {self.max_time_s:g} s reached"
             return False
         applied = {
-            name: RobotCommand(CommandMode.TORQUE, tau=torques[name], tool=tools.get(name))
+            name: RobotCommand.trusted_torque(torques[name], tools.get(name))
             for name in self.robots
         }
         self.backend.apply(Command(applied))

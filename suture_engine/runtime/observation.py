@@ -243,6 +243,21 @@ class RobotCommand:
         """Joint torques [N*m, N*m, N*m, N]."""
         return cls(CommandMode.TORQUE, tau=_frozen_array(tau), tool=tool)
 
+    @classmethod
+    def trusted_torque(cls, tau: FloatArray, tool: ToolCommand | None = None) -> RobotCommand:
+        """Joint torques from an array the caller owns and never changes (no copy, no checks).
+
+        The interpreter's per-tick fast path; ``tau`` must be a float64 array of shape (4,).
+        """
+        cmd = object.__new__(cls)
+        tau.flags.writeable = False
+        object.__setattr__(cmd, "mode", CommandMode.TORQUE)
+        object.__setattr__(cmd, "q", None)
+        object.__setattr__(cmd, "qd", None)
+        object.__setattr__(cmd, "tau", tau)
+        object.__setattr__(cmd, "tool", tool)
+        return cmd
+
 
 @dataclass(frozen=True)
 class Command:
