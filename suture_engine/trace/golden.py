@@ -69,7 +69,12 @@ class Tolerance:
         return self.abs + self.rel * abs(expected)
 
     def allows(self, expected: float, actual: float) -> bool:
-        """Whether ``actual`` matches ``expected``."""
+        """Whether ``actual`` matches ``expected``.
+
+        Args:
+            expected: the golden value [the field's unit].
+            actual: the value to check [the field's unit].
+        """
         return abs(actual - expected) <= self.bound(expected)
 
     def __str__(self) -> str:
@@ -98,7 +103,12 @@ class ToleranceSpec:
     default: Tolerance = EXACT
 
     def tolerance_for(self, topic: str, path: str) -> Tolerance | None:
-        """The tolerance of a field, or ``None`` when it is ignored."""
+        """The tolerance of a field, or ``None`` when it is ignored.
+
+        Args:
+            topic: the concrete topic (``/command/left``).
+            path: the field path, with or without list indices (``values[3]``).
+        """
         bare = _INDEX.sub("", path)
         for topic_glob, field_glob in self.ignore:
             if fnmatch.fnmatchcase(topic, topic_glob) and fnmatch.fnmatchcase(bare, field_glob):

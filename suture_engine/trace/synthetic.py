@@ -24,7 +24,13 @@ __all__ = ["synthetic_messages", "synthetic_meta", "write_synthetic_trace"]
 def synthetic_meta(
     control_rate_hz: float = 1000.0, robots: Sequence[str] = ("left", "right"), seed: int = 0
 ) -> TraceMeta:
-    """The ``/meta`` of a synthetic trace."""
+    """The ``/meta`` of a synthetic trace.
+
+    Args:
+        control_rate_hz: control rate [Hz].
+        robots: robot names.
+        seed: the seed recorded.
+    """
     return TraceMeta(
         procedure="synthetic",
         seed=seed,
