@@ -21,12 +21,19 @@ Channels (``<robot>`` is a robot name such as ``left`` or ``right``):
 ``/tension/estimated``     suture tension estimated from the measurements [N]
 ``/qp/<robot>``            move-constrained QP: status, iterations, active constraints
                            (solve time [us] is wall-clock data: dropped by default)
-``/ground_truth/suture``   simulator's suture centerline [m], at a lower rate
+``/ground_truth/suture``   simulator's suture centerline as x, y, z arrays [m], at a lower
+                           rate (writers may give ``centerline: [[x, y, z], ...]``)
 ``/ground_truth/tension``  simulator's true suture tension [N]
 ``/ground_truth/knot``     knot classification of the simulated suture
 ========================== ============================================================
 
 Ground-truth channels are for evaluation only: skills never see them.
+
+Each field of a schema has a single JSON type and arrays hold scalars or objects,
+the subset Foxglove's JSON-schema parser accepts; any value may still be ``null``
+(a non-finite number, or an optional field left empty), which
+:func:`validation_schema` spells out for validators. The run metadata is also
+written as an MCAP metadata record named ``suture_engine``.
 
 Example:
     >>> spec_for("/joint_state/left").schema_name
