@@ -57,7 +57,7 @@ def test_alias_expansion_is_bounded() -> None:
 def test_depth_is_bounded() -> None:
     n = MAX_DEPTH + 5
     assert _error("[" * n + "]" * n)[0] == "yaml-too-deep"
-    assert _error("[" * 20000 + "]" * 20000)[0] == "yaml-too-deep"
+    assert _error("[" * 5000 + "]" * 5000)[0] == "yaml-too-deep"
 
 
 def test_size_is_bounded() -> None:
