@@ -312,3 +312,29 @@ def test_summary_has_no_nan() -> None:
     )
     d = s.to_dict()
     assert d["metrics"] == {"k": None, "x": [1.0, None]}
+
+
+@pytest.mark.parametrize(("mode", "low", "high"), [("lock", 0.0, 5e-3), ("manual", 5e-2, 1.0)])
+def test_on_pybullet_lock_holds_the_pose_and_manual_gives_way(
+    tmp_path: Path, mode: str, low: float, high: float
+) -> None:
+    """Lock regulates the captured pose (4.44); Manual only compensates gravity (5.1)."""
+    ops = tmp_path / "ops.yaml"
+    ops.write_text(
+        "events:\n"
+        "  - {at: 0.05 s, do: lock}\n"
+        f"  - {{at: 0.07 s, do: {mode}}}\n"
+        "  - {at: 0.1 s, do: force, robot: endobot_1, force: [0.0, 5.0, 0.0], duration: 100 ms}\n"
+        "  - {at: 0.6 s, do: abort}\n",
+        encoding="utf-8",
+    )
+    result = run_procedure(
+        PROCS / "steps.yaml", backend="pybullet", operator_file=ops, out=tmp_path / "run"
+    )
+    assert result.summary.outcome == "aborted"
+    q = {
+        round(m.log_time_ns / 1e6): np.array(m.data["position"])
+        for m in _messages(result.trace, "/joint_state/endobot_1")
+    }
+    drift = max(float(np.abs(q[k] - q[50]).max()) for k in range(100, 600))
+    assert low < drift < high
