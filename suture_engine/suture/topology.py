@@ -1,9 +1,11 @@
 """Which knot does the suture hold? Classification from the centerline alone.
 
 The suture centerline is an *open* polyline. It is closed far away: each end
-is extended radially (away from the centre of the curve) to a sphere ten
-times larger than the curve, and the two far points are joined along that
-sphere, so the closure adds no crossing inside the knot region. The closed
+is extended radially away from the knot's centre (the median of the open
+curve's own crossings in one projection, or the centroid when there are
+none) to a sphere ten times larger than the curve, and the two far points
+are joined along that sphere, so the closure adds no crossing inside the
+knot region. The closed
 polygon is projected along several random directions; each projection gives
 a signed Gauss code (see :mod:`suture_engine.suture.gauss_code`) from which
 the crossing count, writhe, Alexander polynomial, determinant and the
@@ -19,6 +21,7 @@ v3 +-2.
 
 from __future__ import annotations
 
+import functools
 import itertools
 from collections import Counter
 from dataclasses import dataclass
@@ -191,6 +194,8 @@ def simplify_polyline(points: ArrayLike, *, rel_tol: float = 1e-6) -> NDArray[np
         return pts
     size = float(np.max(np.ptp(pts, axis=0)))
     tol = max(size, 1e-300) * rel_tol
+    if np.all(np.linalg.norm(np.diff(pts, axis=0), axis=1) > tol):
+        return pts
     keep = [0]
     for i in range(1, len(pts)):
         if np.linalg.norm(pts[i] - pts[keep[-1]]) > tol:
@@ -276,6 +281,14 @@ def _frame(direction: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.vstack([e1, e2, d])
 
 
+@functools.lru_cache(maxsize=16)
+def _segment_pairs(m: int) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """Index pairs (i, j), i < j, of non-adjacent edges of a closed m-gon."""
+    ii, jj = np.triu_indices(m, k=2)
+    keep = ~((ii == 0) & (jj == m - 1))
+    return ii[keep], jj[keep]
+
+
 class _Degenerate(ValueError):
     """A projection too close to a non-generic one."""
 
@@ -318,13 +331,14 @@ def project_gauss_code(
     d = b - a
     scale = float(np.max(np.ptp(a, axis=0))) or 1.0
     # Pairwise 2D segment intersection, i < j and not adjacent.
-    ii, jj = np.triu_indices(m, k=2)
-    keep = ~((ii == 0) & (jj == m - 1))
-    ii, jj = ii[keep], jj[keep]
-    # Cheap bounding-box rejection first.
+    ii, jj = _segment_pairs(m)
+    # Cheap bounding-box rejection first, one axis at a time.
     lo = np.minimum(a, b)
     hi = np.maximum(a, b)
-    overlap = np.all((lo[ii] <= hi[jj]) & (lo[jj] <= hi[ii]), axis=1)
+    lx, hx, ly, hy = lo[:, 0], hi[:, 0], lo[:, 1], hi[:, 1]
+    overlap = (lx[ii] <= hx[jj]) & (lx[jj] <= hx[ii])
+    ii, jj = ii[overlap], jj[overlap]
+    overlap = (ly[ii] <= hy[jj]) & (ly[jj] <= hy[ii])
     ii, jj = ii[overlap], jj[overlap]
     di, dj = d[ii], d[jj]
     denom = di[:, 0] * dj[:, 1] - di[:, 1] * dj[:, 0]
