@@ -125,11 +125,14 @@ def graph(
     allow_outside: Annotated[
         bool, typer.Option(help="Allow use:/scene paths outside the procedure's folder tree.")
     ] = False,
+    engine: Annotated[
+        str, typer.Option(help="text, or transitions (its GraphMachine; mermaid only).")
+    ] = "text",
 ) -> None:
     """Draw the procedure's state machine (each state with its skill and invariant)."""
     from suture_engine.validation.report import graph_command
 
-    raise typer.Exit(graph_command(file, fmt=format_, allow_outside=allow_outside))
+    raise typer.Exit(graph_command(file, fmt=format_, allow_outside=allow_outside, engine=engine))
 
 
 @app.command()

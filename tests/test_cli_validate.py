@@ -142,3 +142,12 @@ def test_every_bundled_procedure_draws(path: Path) -> None:
         if state.skill is not None:
             assert f"skill {state.skill}" in mermaid
     assert dot.count("{") == dot.count("}")
+
+
+def test_graph_through_transitions_graph_machine() -> None:
+    result = _suture("graph", "procedures/stitch.yaml", "--engine", "transitions")
+    assert result.returncode == 0, result.stderr
+    text = result.stdout
+    assert "stateDiagram-v2" in text
+    assert 'state "bite<br/>skill pass-needle<br/>invariant tension <= 3 N' in text
+    assert "s1 --> s2: done" in text and "[*] --> s0" in text

@@ -4,19 +4,20 @@ Each state is labelled with its name, its skill (or the sub-procedure it uses)
 and its invariant; planned transitions are drawn by event, failure policies as
 edges to the Lock (wait for the operator) or Abort pseudo-states of the
 supervisory automaton (thesis 4.6). No graphviz installation is needed: the
-output is text.
+output is text. :func:`to_mermaid_transitions` draws the same machine through
+``transitions``' own ``GraphMachine`` (its Mermaid engine, no graphviz needed).
 """
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from suture_engine.language.model import FailurePolicy
 
 if TYPE_CHECKING:
     from suture_engine.language.procedure import LoadedState, Procedure
 
-__all__ = ["state_label", "to_dot", "to_mermaid"]
+__all__ = ["state_label", "to_dot", "to_mermaid", "to_mermaid_transitions"]
 
 
 def _invariant_text(state: LoadedState) -> str:
@@ -131,3 +132,76 @@ def to_dot(proc: Procedure) -> str:
         lines.append('  Abort [label="Abort", shape=octagon, peripheries=2];')
     lines.append("}")
     return "\n".join(lines) + "\n"
+
+
+def _machine_spec(proc: Procedure) -> tuple[list[dict[str, object]], list[dict[str, str]]]:
+    ids = {name: f"s{i}" for i, name in enumerate(proc.states)}
+    states: list[dict[str, object]] = [
+        {"name": ids[name], "label": "<br/>".join(_clean(x) for x in state_label(state))}
+        for name, state in proc.states.items()
+    ]
+    transitions: list[dict[str, str]] = []
+    extra: set[str] = set()
+    for name, state in proc.states.items():
+        for event, target in state.on.items():
+            if isinstance(target, FailurePolicy):
+                dest = "Lock" if target.then == "lock" else "Abort"
+                extra.add(dest)
+                label = _clean(_policy_text(event, target))
+                transitions.append(
+                    {
+                        "trigger": f"t{len(transitions)}",
+                        "source": ids[name],
+                        "dest": dest,
+                        "label": label,
+                    }
+                )
+            elif target in ids:
+                transitions.append(
+                    {
+                        "trigger": f"t{len(transitions)}",
+                        "source": ids[name],
+                        "dest": ids[target],
+                        "label": _clean(event),
+                    }
+                )
+    for dest in sorted(extra):
+        text = "Lock - hold, wait for the operator" if dest == "Lock" else "Abort"
+        states.append({"name": dest, "label": text})
+    return states, transitions
+
+
+def to_mermaid_transitions(proc: Procedure) -> str:
+    """A Mermaid ``stateDiagram-v2`` drawn by ``transitions``' ``GraphMachine``."""
+    from transitions.extensions import GraphMachine
+
+    base: Any = GraphMachine.state_cls
+
+    class _LabelledState(base):  # type: ignore[misc, valid-type]
+        def __init__(self, *args: object, label: str | None = None, **kwargs: object) -> None:
+            super().__init__(*args, **kwargs)
+            if label:
+                self.label = label
+
+    class _Machine(GraphMachine):  # type: ignore[misc]
+        state_cls = _LabelledState
+
+    class _Model:
+        pass
+
+    states, transitions = _machine_spec(proc)
+    if not states:
+        return "stateDiagram-v2\n"
+    model = _Model()
+    initial = f"s{list(proc.states).index(proc.initial)}" if proc.initial in proc.states else None
+    _Machine(
+        model=model,
+        states=states,
+        transitions=transitions,
+        initial=initial or str(states[0]["name"]),
+        graph_engine="mermaid",
+        auto_transitions=False,
+        title=proc.name,
+    )
+    text: str = model.get_graph().draw(None)  # type: ignore[attr-defined]
+    return text if text.endswith("\n") else text + "\n"

@@ -119,20 +119,33 @@ def graph_command(
     *,
     fmt: str = "mermaid",
     allow_outside: bool = False,
+    engine: str = "text",
     out: TextIO | None = None,
     err: TextIO | None = None,
 ) -> int:
     """Draw a procedure's state machine as Mermaid ``stateDiagram-v2`` or Graphviz ``dot``.
 
     The procedure must load (the semantic checks are ``suture validate``'s job).
+
+    Args:
+        file: the procedure file.
+        fmt: ``mermaid`` or ``dot``.
+        allow_outside: allow includes outside the procedure's folder tree.
+        engine: ``text`` (the engine's own writer) or ``transitions`` (``transitions``'
+            ``GraphMachine`` with its Mermaid engine; mermaid only).
+        out: where the drawing goes (default stdout).
+        err: where problems go (default stderr).
     """
     from suture_engine.language.loader import load
-    from suture_engine.validation.graph import to_dot, to_mermaid
+    from suture_engine.validation.graph import to_dot, to_mermaid, to_mermaid_transitions
 
     out = out or sys.stdout
     err = err or sys.stderr
     if fmt not in ("mermaid", "dot"):
         err.write(f"error: --format must be mermaid or dot, found {fmt!r}\n")
+        return 2
+    if engine not in ("text", "transitions") or (engine == "transitions" and fmt != "mermaid"):
+        err.write("error: --engine is text, or transitions with --format mermaid\n")
         return 2
     result = load(file, allow_outside=allow_outside)
     if result.problems or result.procedure is None:
@@ -140,5 +153,8 @@ def graph_command(
             err.write(p.format() + "\n")
         return 2 if any(p.code in IO_CODES for p in result.problems) else 1
     proc: Procedure = result.procedure
-    out.write(to_mermaid(proc) if fmt == "mermaid" else to_dot(proc))
+    if engine == "transitions":
+        out.write(to_mermaid_transitions(proc))
+    else:
+        out.write(to_mermaid(proc) if fmt == "mermaid" else to_dot(proc))
     return 0
