@@ -16,6 +16,7 @@ Prints median and p99 [us] and the ratios. Usage: ``python benchmarks/qp_cost.py
 
 from __future__ import annotations
 
+import os
 import sys
 import time
 
@@ -31,9 +32,9 @@ def _pose(q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.r_[pose.position, pose.roll], endobot.jacobian(q)
 
 
-def _stats(ns: list[int]) -> tuple[float, float]:
+def _stats(ns: list[int]) -> tuple[float, float, float]:
     us = np.asarray(ns, dtype=float) / 1e3
-    return float(np.median(us)), float(np.percentile(us, 99))
+    return float(np.median(us)), float(np.percentile(us, 90)), float(np.percentile(us, 99))
 
 
 class CvxpyTwin:
@@ -161,12 +162,14 @@ def main(n: int = 3000) -> None:
         ("re-setup: fresh OSQP problem each tick (incl. sparse build)", resetup),
         (f"cvxpy (parametrised, solver {twin.problem.solver_stats.solver_name})", cvx_t),
     ]
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
+    print(f"machine: {os.cpu_count()} cores, 1-min load average {load:.1f} at the end")
     print(f"QP per tick: {qp.n} variables, {qp.m} rows, {n} ticks ({skip} warm-up ticks dropped)")
-    print(f"{'':62s} {'median [us]':>12s} {'p99 [us]':>10s}")
+    print(f"{'':62s} {'median [us]':>12s} {'p90 [us]':>10s} {'p99 [us]':>10s}")
     for name, data in rows_out:
         if data:
-            med, p99 = _stats(data[skip:])
-            print(f"{name:62s} {med:12.1f} {p99:10.1f}")
+            med, p90, p99 = _stats(data[skip:])
+            print(f"{name:62s} {med:12.1f} {p90:10.1f} {p99:10.1f}")
     wm = _stats(warm[skip:])[0]
     print(f"ratio re-setup / warm (median): {_stats(resetup[skip:])[0] / wm:.1f}x")
     print(f"ratio cvxpy / warm (median):    {_stats(cvx_t[skip:])[0] / wm:.1f}x")
