@@ -199,3 +199,33 @@ def test_bad_gains_are_typed_errors(kwargs: dict[str, float], name: str) -> None
     with pytest.raises(ForceGainsError) as err:
         ExplicitForceController(**kwargs)
     assert err.value.name == name
+
+
+def test_friction_compensation_adds_the_identified_friction() -> None:
+    """Coulomb (smoothed sign) and, optionally, viscous friction of Table 3.3 are added."""
+    prm = endobot.E1
+    fr = [j.friction for j in prm.joints]
+    q = np.array([0.1, 0.2, 0.0, 0.1])
+    qd = np.array([0.5, -0.5, 0.0, 1e-4])
+    tip = endobot.forward_kinematics(q).position
+    base = HybridForcePositionController(
+        (1.0, 0.0, 0.0), tip, ExplicitForceController(0.0, 0.0, 0.0, DT), kx=0.0, dx=0.0
+    )
+    tau0 = base.update(q, qd, 0.0, 0.0).torque
+    for viscous in (False, True):
+        comp = HybridForcePositionController(
+            (1.0, 0.0, 0.0),
+            tip,
+            ExplicitForceController(0.0, 0.0, 0.0, DT),
+            kx=0.0,
+            dx=0.0,
+            friction=fr,
+            viscous=viscous,
+            smoothing=0.01,
+        )
+        extra = comp.update(q, qd, 0.0, 0.0).torque - tau0
+        assert extra[0] == pytest.approx(fr[0].coulomb + viscous * fr[0].viscous * 0.5, rel=1e-6)
+        assert extra[1] == pytest.approx(-fr[1].coulomb - viscous * fr[1].viscous * 0.5, rel=1e-6)
+        assert extra[2] == 0.0
+        smooth = fr[3].coulomb * math.tanh(0.01) + viscous * fr[3].viscous * 1e-4
+        assert extra[3] == pytest.approx(smooth, rel=1e-6)

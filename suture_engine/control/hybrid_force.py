@@ -41,7 +41,7 @@ from numpy.typing import NDArray
 
 from suture_engine.errors import SutureError
 from suture_engine.robot import endobot
-from suture_engine.robot.params import EndoBotParams
+from suture_engine.robot.params import EndoBotParams, FrictionParams
 
 __all__ = [
     "ExplicitForceController",
@@ -247,6 +247,10 @@ class HybridForcePositionController:
         dr: roll damping [N*m*s/rad].
         reference: optional :class:`ModifiedForceReference`; when given, the
             reference passed to :meth:`update` is ignored and this one is used.
+        friction: joint friction parameters to compensate (3.43, 5.19); None: no
+            compensation. Coulomb friction ``Fc tanh(qdot / smoothing)`` is added.
+        viscous: also compensate viscous friction ``Fv qdot``.
+        smoothing: velocity scale of the smoothed sign [rad/s or m/s].
 
     Raises:
         ForceGainsError: on a bad direction, negative gains or periods.
@@ -265,6 +269,9 @@ class HybridForcePositionController:
         kr: float = 0.5,
         dr: float = 0.01,
         reference: ModifiedForceReference | None = None,
+        friction: Sequence[FrictionParams] | None = None,
+        viscous: bool = False,
+        smoothing: float = 0.01,
     ) -> None:
         self.s_force, self.s_motion = selection_matrices(direction)
         e = np.asarray(direction, dtype=float)
@@ -283,6 +290,9 @@ class HybridForcePositionController:
         self._tick = 0
         self._uf = 0.0
         self._fr = 0.0
+        self._fc = np.array([f.coulomb for f in friction]) if friction is not None else None
+        self._fv = np.array([f.viscous if viscous else 0.0 for f in friction or ()])
+        self.smoothing = _check("smoothing", smoothing, positive=True)
 
     def __repr__(self) -> str:
         e = ", ".join(f"{x:.3g}" for x in self.direction)
@@ -325,4 +335,6 @@ class HybridForcePositionController:
         tau = jac[:3].T @ f_task
         tau[2] += self.kr * (self.roll - qa[2]) - self.dr * qda[2]
         tau += endobot.gravity_vector(qa, self.params)
+        if self._fc is not None:
+            tau += self._fc * np.tanh(qda / self.smoothing) + self._fv * qda
         return HybridCommand(tau, self._uf, self._fr, float(np.linalg.norm(across)), v_e)
