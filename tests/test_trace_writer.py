@@ -249,6 +249,16 @@ def test_bad_input_gives_typed_errors(tmp_path: Path) -> None:
         TraceWriter(tmp_path / "missing-dir" / "t.mcap", TraceMeta("p", 1, 1000.0))
 
 
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full (Linux)")
+@pytest.mark.parametrize("fsync", [True, False])
+def test_disk_full_gives_a_typed_error(fsync: bool) -> None:
+    with pytest.raises(TraceIOError, match="No space left"):
+        w = TraceWriter("/dev/full", TraceMeta("p", 1, 1000.0), fsync=fsync)
+        for k in range(10_000):
+            w.write("/tension/estimated", k * 1_000_000, {"tension_N": 1.0})
+        w.close()
+
+
 def test_flush_makes_messages_readable_before_close(tmp_path: Path) -> None:
     path = tmp_path / "t.mcap"
     w = TraceWriter(path, TraceMeta("p", 1, 1000.0), flush_interval_ns=0)

@@ -179,11 +179,18 @@ class TraceWriter:
         self.message_count = 0
         self.last_durable_ns: int | None = None
         """Simulation time of the last message known to be on disk [ns]."""
-        self._mcap.start(profile="", library=LIBRARY_PREFIX + meta.engine_version)
-        self._sync()
-        self.write(channels.META, 0, meta.to_message())
-        self._mcap.add_metadata("suture_engine", meta.to_mcap_metadata())
-        self.flush()  # a killed run's trace still says what it is
+        try:
+            self._mcap.start(profile="", library=LIBRARY_PREFIX + meta.engine_version)
+            self._sync()
+            self.write(channels.META, 0, meta.to_message())
+            self._mcap.add_metadata("suture_engine", meta.to_mcap_metadata())
+            self.flush()  # a killed run's trace still says what it is
+        except OSError as exc:
+            _close_quietly(raw)
+            raise TraceIOError(str(self.path), f"cannot write trace: {exc.strerror}") from exc
+        except TraceIOError:
+            _close_quietly(raw)
+            raise
 
     # -- writing ----------------------------------------------------------------------------
 
@@ -276,9 +283,9 @@ class TraceWriter:
             if self._fsync:
                 os.fsync(self._file.fileno())
         except OSError as exc:
+            _close_quietly(self._file)
             raise TraceIOError(str(self.path), f"close failed: {exc.strerror}") from exc
-        finally:
-            self._file.close()
+        self._file.close()
         self.last_durable_ns = self._last_time_ns
 
     def __enter__(self) -> TraceWriter:
@@ -325,3 +332,11 @@ class TraceWriter:
             raise TraceMessageError(
                 str(self.path), topic, f"does not match {spec.schema_name}: {exc.message}"
             ) from exc
+
+
+def _close_quietly(f: Any) -> None:
+    """Closes a file after a failed write; a second failure (the buffer) is ignored."""
+    try:
+        f.close()
+    except OSError:
+        pass
