@@ -200,3 +200,18 @@ def test_mode_of_locks_the_robots_a_step_does_not_drive() -> None:
     a.start()
     assert a.mode_of("endobot_1") is Mode.AUTONOMOUS
     assert a.mode_of("endobot_2") is Mode.LOCK
+
+
+def test_a_first_step_that_cannot_start_fails_the_run() -> None:
+    a = _automaton(_plan(boom={"a"}))
+    [record] = a.start()
+    assert (record.source, record.dest, record.event) == ("idle", FAILED, "fail")
+    assert "skill-start-failed:a" in record.reason and a.outcome is Outcome.FAILED
+
+
+def test_a_resume_that_cannot_start_stays_locked() -> None:
+    a = _automaton(_plan(boom={"c"}))
+    a.start()
+    a.operator("lock")
+    [record] = a.operator("resume", "c")
+    assert a.state == "lock" and record.event == "start-failed"

@@ -126,6 +126,7 @@ class StepSpec:
         timeout_s: the step's timeout [s] (None: none).
         invariant: the step's invariant for the monitor (4.43), or None.
         robots: the robots the step drives (others hold their pose).
+        roles: role -> robot of the (sub-)procedure the step comes from.
     """
 
     name: str
@@ -135,6 +136,7 @@ class StepSpec:
     timeout_s: float | None = None
     invariant: Any = None
     robots: tuple[str, ...] = ()
+    roles: Mapping[str, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -421,6 +423,9 @@ class Automaton:
             return self.unpredictable(reason)
         if self.state.endswith(NOTBE_SUFFIX):
             return self._apply_policy(reason)
+        if self.mode is Mode.IDLE:  # the first step cannot start: nothing to fall back on
+            return [self._fire("fail", "unpredictable", reason)]
+        # lock or manual: an operator's resume that could not start; stay and wait
         return [TransitionRecord(self.state, self.state, "start-failed", "unpredictable", reason)]
 
     def start(self) -> list[TransitionRecord]:

@@ -186,7 +186,7 @@ class Interpreter:
         assert self._obs is not None
         ctx = SkillContext(
             step=spec.name,
-            roles=self.roles,
+            roles={**self.roles, **spec.roles},
             dt=self.dt,
             start=self._obs,
             scene=self.scene,

@@ -78,6 +78,7 @@ def _inline(
     terminals: dict[str, Outcome],
 ) -> str:
     """Add ``proc``'s states; return the full name of its entry step."""
+    roles = {**roles, **dict(getattr(proc, "roles", None) or {})}
     states: Mapping[str, Any] = proc.states
     entry: dict[str, str] = {}
     busy: set[str] = set()
@@ -135,6 +136,7 @@ def _inline(
             timeout_s=st.timeout,
             invariant=convert_invariant(st.invariant),
             robots=_robots(st.params, roles),
+            roles=roles,
         )
     return resolve(proc.initial)
 
