@@ -180,7 +180,7 @@ class GoldenResult:
         ok: True when the traces match.
         divergence: the first divergence in simulation time, or ``None``.
         channel_divergences: the first divergence of every diverging channel.
-        messages_compared: messages compared (expected side).
+        messages_compared: expected messages on the compared channels.
         channels_compared: channels compared.
     """
 
