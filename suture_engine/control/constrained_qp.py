@@ -20,6 +20,12 @@ structural non-zero) and each tick only the values of q, l, u, P and A are passe
 ``update``; OSQP warm-starts from the previous solution. A solve is capped by
 ``max_iter`` and ``time_limit``; when it does not end ``solved``, the previous command
 is held and the failure counted (``failures``, ``consecutive_failures``).
+
+Every soft row carries its own slack with a quadratic penalty ``w_s`` (default 1e5):
+when the rows are feasible they hold up to (multiplier / w_s), about 1e-5 in the row's
+rate units; when they are not (a tension bound already exceeded, a fixture the joint
+limits cannot reach), the slack gives way and ``slack_max`` says by how much. The joint
+box has no slack; the command is clipped into it after the solve.
 """
 
 from __future__ import annotations
