@@ -94,6 +94,13 @@ class MoveConstrained(Skill):
     SETTLE_S: ClassVar[float] = 1.0
     """Time allowed after the reference's end to reach the tolerance [s], extended by
     the time the extension-rate bound (4.11) was active."""
+    SHARED_SPACE: ClassVar[str] = "task"
+    """Shared-mode law: ``"task"`` (6.24, Kp = STIFFNESS, Kv = DAMPING) or ``"joint"``
+    (6.35-6.37 with JOINT_KP, JOINT_KD; line, circle and plane only)."""
+    JOINT_KP: ClassVar[tuple[float, float, float, float]] = (60.0, 60.0, 0.0, 1500.0)
+    """Joint stiffness of joint-space shared control [N*m/rad, N*m/rad, N*m/rad, N/m]."""
+    JOINT_KD: ClassVar[tuple[float, float, float, float]] = (1.0, 1.0, 0.0, 40.0)
+    """Joint damping of joint-space shared control [N*m*s/rad, ..., N*s/m]."""
     CAPTURE_S: ClassVar[float] = 0.5
     """Shared mode: the first seconds of the state, while the fixture pulls the tool onto
     it, are left out of the metrics [s]."""
@@ -251,7 +258,8 @@ class MoveConstrained(Skill):
         ConstrainedQP`) is evaluated at the skill's joint reference, which integrates its
         solutions, and the reference is sent as a position set point with the velocity
         feed-forward. Shared: task-space shared control (6.24) with Kp = ``STIFFNESS``
-        and Kv = ``DAMPING`` plus gravity compensation, as joint torques.
+        and Kv = ``DAMPING``, or with ``SHARED_SPACE = "joint"`` joint-space shared
+        control (6.35-6.37), plus gravity compensation, as joint torques.
 
         Args:
             ctx: the skill context.
@@ -264,6 +272,9 @@ class MoveConstrained(Skill):
 
         from suture_engine.control.shared import (
             TaskSpaceGains,
+            TaskSpaceOutput,
+            constraint_force,
+            joint_space_shared_control,
             task_space_shared_control,
             task_vector,
         )
@@ -281,13 +292,28 @@ class MoveConstrained(Skill):
         t = obs.t - self._t0
         if p.mode == "shared":
             grav = endobot.gravity_vector(ro.q, self._gravity_params)
-            out = task_space_shared_control(
-                self._fixture,
-                ro.q,
-                ro.qd,
-                TaskSpaceGains(self.STIFFNESS, self.DAMPING),
-                gravity=grav,
-            )
+            if self.SHARED_SPACE == "joint" and self._fixture.kind == "eq":
+                tau, _ = joint_space_shared_control(
+                    self._fixture,
+                    ro.q,
+                    ro.qd,
+                    np.asarray(self.JOINT_KP, dtype=float),
+                    np.asarray(self.JOINT_KD, dtype=float),
+                )
+                x_meas = task_vector(np.asarray(ro.q, dtype=float))
+                out = TaskSpaceOutput(
+                    tau + grav,
+                    constraint_force(self._fixture, ro.q, tau),  # (6.53)
+                    self._fixture.value(x_meas),
+                )
+            else:
+                out = task_space_shared_control(
+                    self._fixture,
+                    ro.q,
+                    ro.qd,
+                    TaskSpaceGains(self.STIFFNESS, self.DAMPING),
+                    gravity=grav,
+                )
             if t >= self.CAPTURE_S:
                 np.maximum(self._peak_e, np.abs(out.deviation), out=self._peak_e)
                 np.maximum(self._peak_f, np.abs(out.constraint_force), out=self._peak_f)
@@ -340,7 +366,8 @@ class MoveConstrained(Skill):
             ``max_deviation_m`` and, in shared mode, ``max_force_N``,
             ``constraint_stiffness_N_per_m`` (the smallest row's max|Fc| / max|e| over
             rows that deviated at least ``MIN_DEVIATION``; nan if none did; Fc is the
-            commanded constraint force (6.20)) and ``desired_stiffness_N_per_m``.
+            commanded constraint force (6.20), or (6.53) in joint space) and, in task
+            space, ``desired_stiffness_N_per_m``.
         """
         import numpy as np
 
@@ -357,5 +384,6 @@ class MoveConstrained(Skill):
             out["constraint_stiffness_N_per_m"] = (
                 float(np.nanmin(k)) if np.any(np.isfinite(k)) else float("nan")
             )
-            out["desired_stiffness_N_per_m"] = self.STIFFNESS
+            if self.SHARED_SPACE == "task" or self._fixture.kind != "eq":
+                out["desired_stiffness_N_per_m"] = self.STIFFNESS
         return out

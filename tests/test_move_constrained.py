@@ -155,3 +155,33 @@ def test_shared_mode_reports_no_stiffness_without_a_push() -> None:
     skill.start(_ctx(obs))
     skill.step(_ctx(obs), _obs(1.0, q))
     assert np.isnan(skill.metrics()["constraint_stiffness_N_per_m"])
+
+
+class _JointSpaceMoveConstrained(MoveConstrained):
+    SHARED_SPACE = "joint"
+
+
+def test_joint_space_shared_mode_restores_and_leaves_free_motion_alone() -> None:
+    direction = np.array([1.0, -1.0, 2.0])
+    line = Line(direction=direction)
+    unit = direction / np.linalg.norm(direction)
+    skill = _JointSpaceMoveConstrained(
+        {"robot": "arm", "fixture": "line", "direction": tuple(direction), "mode": "shared"}
+    )
+    on = endobot.inverse_kinematics(0.1 * unit, 0.3)
+    obs = _obs(0.0, on)
+    skill.start(_ctx(obs))
+    # On the line and moving along it (and rolling): only gravity compensation (6.37).
+    along = np.linalg.solve(endobot.jacobian(on), np.r_[0.02 * unit, 0.5])
+    tau = skill.step(_ctx(obs), _obs(0.6, on, qd=along)).command.robots[ROBOT].tau
+    np.testing.assert_allclose(tau, endobot.gravity_vector(on), atol=1e-9)
+    # Off the line at rest: the task-space force pushes back towards it.
+    off = endobot.inverse_kinematics(0.1 * unit + np.array([0.002, 0.001, 0.0]), 0.3)
+    tau = skill.step(_ctx(obs), _obs(0.7, off)).command.robots[ROBOT].tau
+    force = np.linalg.solve(endobot.jacobian(off).T, tau - endobot.gravity_vector(off))
+    e = line.value(task_vector(off))
+    assert (line.jacobian(task_vector(off)).T @ e) @ force < 0
+    m = skill.metrics()
+    assert m["max_deviation_m"] == pytest.approx(np.abs(e).max())
+    assert "desired_stiffness_N_per_m" not in m
+    assert m["constraint_stiffness_N_per_m"] > 1000.0  # stiff joint PD (Table 6.3: 6268)
