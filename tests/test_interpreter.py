@@ -338,3 +338,40 @@ def test_on_pybullet_lock_holds_the_pose_and_manual_gives_way(
     }
     drift = max(float(np.abs(q[k] - q[50]).max()) for k in range(100, 600))
     assert low < drift < high
+
+
+def test_sensor_dropout_is_an_unpredictable_event() -> None:
+    from suture_engine.runtime.observation import Measurement, RobotMeasurement
+
+    class Dropout(IdealBackend):
+        def observe(self) -> Measurement:
+            m = super().observe()
+            if self.tick != 30:
+                return m
+            robots = {
+                n: RobotMeasurement(r.q, r.base_wrench, r.tool, fault=(n == "endobot_1"))
+                for n, r in m.robots.items()
+            }
+            return Measurement(m.tick, m.t, robots)
+
+    plan = Plan(
+        "p",
+        "a",
+        {
+            "a": StepSpec(
+                "a",
+                lambda: ScriptedSkill("a", "success", after_s=0.1),
+                "end",
+                FailurePolicy(0, Then.ABORT),
+                robots=("endobot_1",),
+            )
+        },
+        {"end": Outcome.SUCCEEDED},
+    )
+    be = Dropout()
+    it = Interpreter(plan, be, be.reset())
+    s = it.run("p", "ideal")
+    assert s.outcome == "aborted"
+    assert [(v["invariant"], v["tick"], v["robot"]) for v in s.violations] == [
+        ("sensor", 30, "endobot_1")
+    ]

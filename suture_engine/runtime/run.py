@@ -350,6 +350,13 @@ def replay_trace(
     if not proc_file:
         raise ProcedureLoadError([f"{trace}: the trace names no procedure file; pass one"])
     run_sets = list(sets) if sets is not None else list((extra or {}).get("sets") or [])
+    if not Path(proc_file).is_file():
+        raise ProcedureLoadError(
+            [
+                f"{trace}: the recorded procedure {proc_file} is not found from "
+                f"{Path.cwd()}; run from the folder the run started in, or pass --procedure FILE"
+            ]
+        )
     proc, plan = load_plan(proc_file, run_sets)
     be = ReplayBackend(reader=reader)
     rate = be.rate
