@@ -375,3 +375,37 @@ def test_sensor_dropout_is_an_unpredictable_event() -> None:
     assert [(v["invariant"], v["tick"], v["robot"]) for v in s.violations] == [
         ("sensor", 30, "endobot_1")
     ]
+
+
+def test_operator_takes_one_robot_while_the_other_works(tmp_path: Path) -> None:
+    result = _run(tmp_path, "ops-one-robot.yaml")
+    assert result.summary.outcome == "succeeded"
+    steps = [(src, dst, trig) for _, src, dst, trig in _transitions(result.trace)]
+    assert steps[:3] == [
+        ("idle", "autonomous/prepare", "start"),
+        ("autonomous/prepare", "autonomous/tighten", "advance"),
+        ("autonomous/tighten", "autonomous/release", "advance"),
+    ]
+    assert ("autonomous/release", "autonomous/release~notbe", "fault") in steps
+    assert steps[-2:] == [
+        ("lock", "autonomous/release", "resume"),
+        ("autonomous/release", "finished", "advance"),
+    ]
+    faults = [
+        m.data["detail"] for m in _messages(result.trace, "/events") if m.data["name"] == "fault"
+    ]
+    assert faults == ["operator-holds:endobot_2"]
+    mode2 = {
+        round(m.log_time_ns / 1e6): m.data["mode"]
+        for m in _messages(result.trace, "/command/endobot_2")
+    }
+    mode1 = {
+        round(m.log_time_ns / 1e6): m.data["mode"]
+        for m in _messages(result.trace, "/command/endobot_1")
+    }
+    assert (mode1[300], mode2[300]) == ("autonomous", "manual")
+    q2 = {
+        round(m.log_time_ns / 1e6): np.array(m.data["position"])
+        for m in _messages(result.trace, "/joint_state/endobot_2")
+    }
+    assert np.abs(q2[400] - q2[100]).max() > 1e-3  # the surgeon moved the grasper

@@ -152,6 +152,8 @@ class Interpreter:
         self._last_skill: Any = None
         self._tension: dict[str, float] = {}
         self.interrupted = False
+        self.robot_modes: dict[str, Mode] = {}
+        """Robots the operator holds alone (lock or manual) while the procedure goes on."""
 
     # ----------------------------------------------------------------- skills
     def _base_poses(self) -> dict[str, Any]:
@@ -238,6 +240,9 @@ class Interpreter:
                     apply(ev.robot, ev.force, ev.duration)
                     self.recorder.operator(time_ns, ev, True, "")
                 continue
+            if ev.robot is not None and ev.action in ("lock", "manual", "resume"):
+                self._robot_operator(time_ns, ev)
+                continue
             try:
                 records = a.operator(ev.action, ev.step)
             except Exception as exc:  # a refused action is recorded, never fatal
@@ -245,6 +250,45 @@ class Interpreter:
                 continue
             self.recorder.operator(time_ns, ev, True, "")
             self._record_transitions(time_ns, records)
+
+    def _robot_operator(self, time_ns: int, ev: OperatorEvent) -> None:
+        """Lock, take or give back ONE robot (Fig. 4.23 is per EndoBot).
+
+        A robot the running step does not drive changes mode alone and the procedure
+        goes on. Taking a robot the running step drives interrupts the procedure like
+        an operator lock (NOT-BE, then the operator's mode for every robot).
+        """
+        a = self.automaton
+        robot = ev.robot
+        assert robot is not None
+        if robot not in self.robots:
+            self.recorder.operator(time_ns, ev, False, f"no robot {robot!r}")
+            return
+        if ev.action == "resume":
+            if self.robot_modes.pop(robot, None) is None:
+                self.recorder.operator(time_ns, ev, False, f"{robot} is not held")
+                return
+            self.recorder.operator(time_ns, ev, True, "")
+            return
+        mode = Mode.LOCK if ev.action == "lock" else Mode.MANUAL
+        if a.mode is Mode.AUTONOMOUS and a.mode_of(robot) is Mode.AUTONOMOUS:
+            self.robot_modes[robot] = mode
+            self.recorder.operator(time_ns, ev, True, "the running step drives it")
+            self._record_transitions(time_ns, a.unpredictable(f"operator-takes:{robot}", True))
+            return
+        self.robot_modes[robot] = mode
+        self.recorder.operator(time_ns, ev, True, "")
+
+    def _held_robot_blocks(self, time_ns: int) -> None:
+        """A step that needs a robot the operator holds cannot run: interrupt it."""
+        a = self.automaton
+        if a.mode is not Mode.AUTONOMOUS or not self.robot_modes:
+            return
+        for robot in self.robot_modes:
+            if a.mode_of(robot) is Mode.AUTONOMOUS:
+                reason = f"operator-holds:{robot}"
+                self._record_transitions(time_ns, a.unpredictable(reason, True))
+                return
 
     def _skill_tick(self, time_ns: int, obs: Observation, meas: Measurement) -> Command | None:
         a = self.automaton
@@ -345,6 +389,7 @@ class Interpreter:
         if self.tick_index == 0:
             self._record_transitions(time_ns, a.start())
         self._handle_operator(time_ns, obs)
+        self._held_robot_blocks(time_ns)
         command = self._skill_tick(time_ns, obs, meas)
         self._manual_check(time_ns, obs)
         torques: dict[str, Any] = {}
@@ -354,6 +399,9 @@ class Interpreter:
             command = self._manual_command(obs)
         for name in self.robots:
             mode = a.mode_of(name)
+            held = self.robot_modes.get(name)
+            if held is not None and mode is not Mode.TERMINAL:
+                mode = held  # the operator holds this robot alone (Fig. 4.23)
             rc = command.robots.get(name) if command is not None else None
             if rc is not None and rc.tool is not None:
                 tools[name] = rc.tool
