@@ -22,7 +22,10 @@ Two sources, one interface (:meth:`poll` once per tick):
           duration: 1 s
 
   Actions: ``lock``, ``manual``, ``resume`` (optional ``step``), ``abort``,
-  ``force``, ``push``. Each event fires once. Errors name the file, line and column.
+  ``force``, ``push``. ``lock``/``manual``/``resume`` with ``robot: NAME`` act on
+  that EndoBot alone (Fig. 4.23): the procedure goes on with the other one, and a
+  step that needs the held robot waits (locked) until it is given back with
+  ``resume`` + ``robot``. Each event fires once. Errors name the file, line and column.
 - :class:`InteractiveOperator` reads single keys from the terminal:
   ``l`` lock, ``m`` manual, ``r`` resume, ``a`` abort.
 """
