@@ -224,6 +224,32 @@ def knot(
     )
 
 
+@app.command()
+def plot(
+    trace: Annotated[Path, typer.Argument(help="A recorded trace (trace.mcap).")],
+    out: Annotated[
+        Path | None, typer.Option(help="Output folder (default: figures/ beside the trace).")
+    ] = None,
+) -> None:
+    """Draw a run's thesis-style figures as PNG (force, joints, path, tension, states, QP)."""
+    from suture_engine.report.cli_report import plot_command
+
+    raise typer.Exit(plot_command(trace, out=out))
+
+
+@app.command()
+def report(
+    trace: Annotated[Path, typer.Argument(help="A recorded trace (trace.mcap).")],
+    out: Annotated[
+        Path | None, typer.Option(help="HTML file (default: report.html beside the trace).")
+    ] = None,
+) -> None:
+    """Write one self-contained HTML page of a run: figures, summary, knot, graph."""
+    from suture_engine.report.cli_report import report_command
+
+    raise typer.Exit(report_command(trace, out=out))
+
+
 def main() -> None:
     """Entry point of the ``suture`` console script."""
     app()
