@@ -7,10 +7,24 @@ from the base force/torque sensor (7.6-7.10) and an optional ramped
 ("modified") force reference (Fig. 7.29). The dry-run checks the tension
 against the scene's limit and the gains against the Routh bounds (7.29, 7.33,
 and 7.41, 7.43 when the scene declares a measurement delay).
+
+Running: the pulling direction comes from the declared entry and exit points
+(:func:`suture_engine.suture.knot.securing_directions`): the stitcher holds
+the loop end, any other tool the post end. The state is assumed to start with
+the strand slack, as the experiments of 7.5.2 do: the base sensor is tared on
+the first tick, which absorbs the static frame's weight and the sensor's bias.
+The tip is held on the line through its starting position; the force loop runs
+at half the control rate (500 Hz at 1 kHz, as 7.5.1). The force command is
+saturated at the scene's tension limit (or twice the desired tension without a
+scene). The skill succeeds once the estimated tension has stayed within 5 % of
+the desired value for ``hold_time``; it fails if the estimate exceeds the
+tension limit or the tension is not reached within ``timeout``.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import math
 from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal
 
 from pydantic import Field
@@ -44,6 +58,8 @@ class TensionRegulateParams(SkillParams):
     """Use the modified (ramped) force reference of Fig. 7.29."""
     hold_time: Duration = Field(default=2.0, gt=0.0, le=60.0)
     """How long the tension is held once reached [s]."""
+    timeout: Duration = Field(default=30.0, gt=0.0, le=600.0)
+    """Longest time to reach and hold the tension [s]."""
 
 
 class TensionRegulate(Skill):
@@ -81,6 +97,135 @@ class TensionRegulate(Skill):
             )
         ]
 
+    TOLERANCE: ClassVar[float] = 0.05
+    """Relative band around the desired tension that counts as reached [-]."""
+    CUTOFF_HZ: ClassVar[float] = 100.0
+    """Low-pass cut-off of the tension estimate [Hz]."""
+
+    def __init__(self, params: SkillParams) -> None:
+        super().__init__(params)
+        self._robot = ""
+        self._ctrl: Any = None
+        self._est: Any = None
+        self._t0 = 0.0
+        self._inside_since: float | None = None
+        self._limit = math.inf
+        self._peak = 0.0
+        self._last = 0.0
+
+    def start(self, ctx: Any) -> None:
+        """Set up the direction rule, the tension estimator and the hybrid controller.
+
+        Args:
+            ctx: the :class:`suture_engine.runtime.context.SkillContext`.
+        """
+        import numpy as np
+
+        from suture_engine.control.hybrid_force import (
+            ExplicitForceController,
+            HybridForcePositionController,
+            ModifiedForceReference,
+        )
+        from suture_engine.robot import endobot
+        from suture_engine.robot.params import E1
+        from suture_engine.suture.knot import securing_directions
+        from suture_engine.suture.tension import TensionEstimator
+
+        p = self.params
+        assert isinstance(p, TensionRegulateParams)
+        self._robot = ctx.robot(p.robot)
+        self._t0 = ctx.t0
+        self._inside_since = None
+        self._peak = 0.0
+        start = ctx.start.robots[self._robot]
+        q0 = np.asarray(start.q, dtype=float)
+        geo = ctx.start.scene
+        rule = securing_directions(
+            geo.entry_point, geo.exit_point, p.throw, normal=geo.tissue_normal
+        )
+        tool = ""
+        if ctx.scene is not None and self._robot in ctx.scene.robots:
+            tool = str(ctx.scene.robots[self._robot].tool)
+        loop_end = tool == "stitcher" if tool else "stitcher" in p.robot
+        e_world = rule.loop_end if loop_end else rule.post_end
+        rot = np.eye(3)
+        base = ctx.base_poses.get(self._robot)
+        if base is not None:
+            rot = np.asarray(base[1], dtype=float).reshape(3, 3)
+        g_base = rot.T @ np.array([0.0, 0.0, -9.81])
+        prm = dataclasses.replace(
+            E1, gravity=(float(g_base[0]), float(g_base[1]), float(g_base[2]))
+        )
+        e_base = rot.T @ e_world
+        self._limit = float(ctx.scene.tension_limit) if ctx.scene is not None else 2.0 * p.tension
+        self._est = TensionEstimator(e_base, prm, dt=ctx.dt, cutoff=self.CUTOFF_HZ)
+        self._est.tare(np.asarray(start.base_wrench, dtype=float), q0)
+        force_dt = 2.0 * ctx.dt if ctx.dt < 1.5e-3 else ctx.dt
+        force = ExplicitForceController(p.kp, p.ki, p.kv, force_dt, limit=self._limit)
+        ramp = ModifiedForceReference(p.tension, dt=force_dt) if p.ramp else None
+        self._ctrl = HybridForcePositionController(
+            e_base,
+            endobot.forward_kinematics(q0).position,
+            force,
+            prm,
+            dt=ctx.dt,
+            roll=float(q0[2]),
+            reference=ramp,
+            friction=[j.friction for j in prm.joints],
+        )
+
     def step(self, ctx: Any, obs: Any) -> Any:
-        """Not available yet: running arrives with the runtime and suturing work."""
-        raise SkillNotAvailable(self.name)
+        """Regulate the tension (7.22) along the securing direction (7.1-7.3).
+
+        Args:
+            ctx: the skill context.
+            obs: this tick's :class:`suture_engine.runtime.observation.Observation`.
+
+        Returns:
+            A :class:`suture_engine.runtime.observation.StepResult`.
+        """
+        from suture_engine.runtime.observation import (
+            Command,
+            RobotCommand,
+            SkillStatus,
+            StepResult,
+        )
+
+        p = self.params
+        assert isinstance(p, TensionRegulateParams)
+        if ctx is None or obs is None:
+            raise SkillNotAvailable(self.name, "step needs the runtime's context and observation")
+        if self._ctrl is None:
+            self.start(ctx)
+        ro = obs.robots[self._robot]
+        est = self._est.update(ro.base_wrench, ro.q)
+        tension = est.tension
+        self._last = tension
+        self._peak = max(self._peak, tension)
+        out = self._ctrl.update(ro.q, ro.qd, tension, p.tension)
+        command = Command({self._robot: RobotCommand.torque(out.torque)})
+        t = obs.t - self._t0
+        if tension > self._limit:
+            return StepResult(
+                command,
+                SkillStatus.FAILURE,
+                f"estimated tension {tension:.2f} N above the limit {self._limit:.2f} N",
+            )
+        if abs(tension - p.tension) <= self.TOLERANCE * p.tension:
+            if self._inside_since is None:
+                self._inside_since = t
+            if t - self._inside_since >= p.hold_time - 0.5 * ctx.dt:
+                return StepResult(command, SkillStatus.SUCCESS)
+        else:
+            self._inside_since = None
+        if t >= p.timeout:
+            return StepResult(
+                command,
+                SkillStatus.FAILURE,
+                f"tension {tension:.2f} N not held at {p.tension:.2f} N within {p.timeout:g} s",
+            )
+        return StepResult(command)
+
+    def metrics(self) -> dict[str, float]:
+        """Estimated peak and last tension of this run so far [N]."""
+        return {"peak_tension_N": self._peak, "final_tension_N": self._last}

@@ -1,0 +1,109 @@
+"""``tension-regulate`` run against a simulated EndoBot pulling a suture tied to a fixture.
+
+The skill gets only what the runtime would give it (encoders, washout velocity, base
+wrench, declared geometry); the check uses the simulated suture's own tension.
+"""
+
+from __future__ import annotations
+
+from typing import Literal
+
+import numpy as np
+import pytest
+
+from skills.tension_regulate import TensionRegulate, TensionRegulateParams
+from suture_engine.control.filters import WashoutFilter
+from suture_engine.runtime.context import SkillContext
+from suture_engine.runtime.observation import (
+    Observation,
+    RobotObservation,
+    SceneGeometry,
+    SkillStatus,
+    ToolState,
+)
+
+pb = pytest.importorskip("pybullet")
+
+ENTRY = (0.0, 0.0, 0.0)
+EXIT = (0.008, 0.006, 0.0)  # post end of throw 1 pulls from entry towards exit (7.1)
+
+
+def _observation(tick: int, t: float, q: np.ndarray, qd: np.ndarray, wrench: np.ndarray):  # type: ignore[no-untyped-def]
+    ro = RobotObservation(q.copy(), qd.copy(), wrench.copy(), ToolState("grasper"))
+    geo = SceneGeometry(np.array(ENTRY), np.array(EXIT), np.array([0.0, 0.0, 1.0]))
+    return Observation(tick, t, {"endobot_2": ro}, geo)
+
+
+def _run(throw: Literal[1, 2], seconds: float) -> tuple[list[SkillStatus], float, TensionRegulate]:
+    from backends.pybullet.robot import EndoBotSim
+    from suture_engine.robot import endobot
+
+    cid = pb.connect(pb.DIRECT)
+    try:
+        pb.setGravity(0.0, 0.0, -9.81, physicsClientId=cid)
+        q0 = (0.0, 0.0, 0.0, 0.1)
+        sim = EndoBotSim(cid, q0=q0)
+        rot = sim._base_rot
+        base = np.array(pb.getBasePositionAndOrientation(sim.body_id, cid)[0])
+        tip0 = base + rot @ endobot.forward_kinematics(q0).position
+        e = np.array(EXIT) - np.array(ENTRY)
+        e /= np.linalg.norm(e)
+        length, slack, k = 0.05, 0.005, 10_000.0
+        anchor = tip0 - e * (length - slack)
+        meas = sim.step(endobot.gravity_vector(q0, sim.model_params))
+        washout = WashoutFilter(200.0, sim.dt)
+        washout.reset(meas.joints.values)
+        obs = _observation(0, 0.0, meas.joints.values, np.zeros(4), meas.base_wrench.values)
+        ctx = SkillContext(
+            step="secure",
+            roles={"grasper": "endobot_2"},
+            dt=sim.dt,
+            start=obs,
+            base_poses={"endobot_2": (tuple(base), tuple(rot.ravel()))},
+        )
+        params = TensionRegulateParams(
+            robot="grasper", tension=10.0, throw=throw, kp=0.3, ki=0.5, kv=1000.0, ramp=False,
+            hold_time=0.5, timeout=seconds,
+        )  # fmt: skip
+        skill = TensionRegulate(params)
+        skill.start(ctx)
+        statuses = []
+        true_tension = 0.0
+        for tick in range(1, round(seconds / sim.dt) + 1):
+            q = meas.joints.values
+            obs = _observation(tick, tick * sim.dt, q, washout.update(q), meas.base_wrench.values)
+            res = skill.step(ctx, obs)
+            statuses.append(res.status)
+            if res.status is not SkillStatus.RUNNING:
+                break
+            tip = np.array(pb.getLinkState(sim.body_id, sim.tool_link, physicsClientId=cid)[0])
+            span = anchor - tip
+            dist = float(np.linalg.norm(span))
+            true_tension = max(0.0, k * (dist - length))
+            if true_tension > 0.0:
+                pb.applyExternalForce(
+                    sim.body_id, sim.tool_link, (true_tension * span / dist).tolist(),
+                    tip.tolist(), pb.WORLD_FRAME, physicsClientId=cid,
+                )  # fmt: skip
+            meas = sim.step(np.asarray(res.command.robots["endobot_2"].tau))
+        return statuses, true_tension, skill
+    finally:
+        pb.disconnect(cid)
+
+
+def test_reaches_and_holds_the_tension_measured_by_the_suture_itself() -> None:
+    statuses, true_tension, skill = _run(throw=1, seconds=8.0)
+    assert statuses[-1] is SkillStatus.SUCCESS
+    assert true_tension == pytest.approx(10.0, rel=0.08)
+    m = skill.metrics()
+    assert m["final_tension_N"] == pytest.approx(10.0, rel=0.05)
+    assert m["peak_tension_N"] < 2.0 * 10.0  # under the force command's saturation
+
+
+def test_second_throw_pulls_the_other_way() -> None:
+    """Direction rule (7.3): throw 2 pulls opposite to throw 1; here, towards the
+    fixture, so the suture stays slack and the skill times out with a failure."""
+    statuses, true_tension, skill = _run(throw=2, seconds=1.5)
+    assert statuses[-1] is SkillStatus.FAILURE
+    assert true_tension == 0.0
+    assert skill.metrics()["peak_tension_N"] < 0.5
