@@ -409,3 +409,24 @@ def test_operator_takes_one_robot_while_the_other_works(tmp_path: Path) -> None:
         for m in _messages(result.trace, "/joint_state/endobot_2")
     }
     assert np.abs(q2[400] - q2[100]).max() > 1e-3  # the surgeon moved the grasper
+
+
+def test_summary_is_written_atomically(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    import json
+
+    from suture_engine.runtime import summary as summary_module
+    from suture_engine.runtime.summary import RunSummary, write_summary
+
+    s = RunSummary("p", "succeeded", "end", 1.0, 2.0, 0.5, 1e3, 0.1, 4.7, [], 0, 0)
+    target = tmp_path / "summary.json"
+    write_summary(target, s)
+    assert json.loads(target.read_text())["outcome"] == "succeeded"
+
+    def boom(*args: Any, **kwargs: Any) -> None:
+        raise OSError("disk full")
+
+    monkeypatch.setattr(summary_module.json, "dump", boom)
+    with pytest.raises(OSError):
+        write_summary(target, dataclasses.replace(s, outcome="failed"))
+    assert json.loads(target.read_text())["outcome"] == "succeeded"  # old file intact
+    assert [p.name for p in tmp_path.iterdir()] == ["summary.json"]  # no temp left behind
