@@ -6,7 +6,7 @@ from typing import Any, ClassVar
 
 from pydantic import Field
 
-from skills.base import Skill, SkillNotAvailable, SkillParams
+from skills.base import Skill, SkillParams
 from suture_engine.language.refs import RoleRef
 from suture_engine.language.units import Force
 
@@ -23,12 +23,100 @@ class PassJawsParams(SkillParams):
 
 
 class PassJaws(Skill):
-    """Close the stitcher jaws and pass the needle to the other jaw (algorithm 1 step 6)."""
+    """Pass the needle to the stitcher's other jaw (algorithm 1 step 6).
+
+    The jaw holding the needle is the one measured closed at the start. The
+    skill closes the other jaw, and once it is measured closed opens the first;
+    it succeeds when the first is measured open. It fails when the tool is not
+    a stitcher, when the holder is ambiguous (both or neither jaw closed), or
+    when a jaw does not respond within :attr:`JAW_S` [s]. The close force is
+    not forwarded: the runtime's tool command carries open/closed only.
+    """
 
     name: ClassVar[str] = "pass-jaws"
     Params: ClassVar[type[SkillParams]] = PassJawsParams
     tools: ClassVar[tuple[str, ...] | None] = ("stitcher",)
 
+    JAW_S: ClassVar[float] = 0.5
+    """Time allowed for each jaw to respond [s]."""
+
+    def __init__(self, params: SkillParams) -> None:
+        super().__init__(params)
+        self._robot = ""
+        self._q: Any = None
+        self._from = 0
+        self._phase = "close"
+        self._t_phase = 0.0
+        self._failure = ""
+
+    def start(self, ctx: Any) -> None:
+        """Find which jaw holds the needle and capture the pose.
+
+        Args:
+            ctx: the :class:`suture_engine.runtime.context.SkillContext`.
+        """
+        p = self.params
+        assert isinstance(p, PassJawsParams)
+        self._robot = ctx.robot(p.robot)
+        robot = ctx.start.robots[self._robot]
+        self._q = robot.q
+        self._phase = "close"
+        self._t_phase = ctx.t0
+        tool = robot.tool
+        self._failure = ""
+        if tool.kind != "stitcher":
+            self._failure = f"tool {tool.kind!r} is not a stitcher"
+        elif tool.jaw_closed == tool.jaw2_closed:
+            state = "both jaws closed" if tool.jaw_closed else "both jaws open"
+            self._failure = f"cannot tell which jaw holds the needle ({state})"
+        self._from = 1 if tool.jaw_closed else 2
+
+    @property
+    def receiving_jaw(self) -> int:
+        """The jaw the needle is passed to (1 or 2)."""
+        return 2 if self._from == 1 else 1
+
+    def _tool(self, jaw: int, closed: bool) -> Any:
+        from suture_engine.runtime.observation import ToolCommand
+
+        return ToolCommand(jaw_closed=closed) if jaw == 1 else ToolCommand(jaw2_closed=closed)
+
+    @staticmethod
+    def _closed(tool: Any, jaw: int) -> bool:
+        return bool(tool.jaw_closed if jaw == 1 else tool.jaw2_closed)
+
     def step(self, ctx: Any, obs: Any) -> Any:
-        """Not available yet: running arrives with the runtime and suturing work."""
-        raise SkillNotAvailable(self.name)
+        """Close the receiving jaw, then open the giving jaw.
+
+        Args:
+            ctx: the skill context.
+            obs: this tick's observation.
+
+        Returns:
+            A :class:`suture_engine.runtime.observation.StepResult`.
+        """
+        from skills.tool_path import hold_command
+        from suture_engine.runtime.observation import SkillStatus, StepResult
+
+        if self._failure:
+            return StepResult(
+                hold_command(self._robot, self._q), SkillStatus.FAILURE, self._failure
+            )
+        tool = obs.robots[self._robot].tool
+        if self._phase == "close":
+            cmd = hold_command(self._robot, self._q, self._tool(self.receiving_jaw, True))
+            if self._closed(tool, self.receiving_jaw):
+                self._phase = "open"
+                self._t_phase = obs.t
+                cmd = hold_command(self._robot, self._q, self._tool(self._from, False))
+            elif obs.t - self._t_phase >= self.JAW_S:
+                return StepResult(
+                    cmd, SkillStatus.FAILURE, f"jaw {self.receiving_jaw} did not close"
+                )
+            return StepResult(cmd)
+        cmd = hold_command(self._robot, self._q, self._tool(self._from, False))
+        if not self._closed(tool, self._from):
+            return StepResult(cmd, SkillStatus.SUCCESS)
+        if obs.t - self._t_phase >= self.JAW_S:
+            return StepResult(cmd, SkillStatus.FAILURE, f"jaw {self._from} did not open")
+        return StepResult(cmd)

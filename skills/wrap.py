@@ -3,6 +3,13 @@
 Algorithm 2 moves the stitcher over the extended hook so that the suture hangs
 over it; algorithm 3 moves the needle holder around the bent grasper tip. The
 mirror image of a knot wraps in the opposite direction.
+
+The other tool's shaft is the line from its RCM point O' through its tip T'
+(both known from its encoders and base pose). The carrying tool's tip first
+moves in a straight line to a point at ``radius`` from that shaft, at
+:attr:`Wrap.HEIGHT` up the shaft from T', then goes ``turns`` full circles
+about the shaft: counter-clockwise about the unit vector from T' to O'
+(right-hand rule) for ``front-to-back``, clockwise for ``back-to-front``.
 """
 
 from __future__ import annotations
@@ -11,7 +18,7 @@ from typing import Any, ClassVar, Literal
 
 from pydantic import Field
 
-from skills.base import Skill, SkillNotAvailable, SkillParams
+from skills.base import Skill, SkillParams
 from suture_engine.language.refs import RoleRef
 from suture_engine.language.units import Length, Speed
 
@@ -36,7 +43,14 @@ class WrapParams(SkillParams):
 
 
 class Wrap(Skill):
-    """Carry the suture around the other tool ``turns`` times in ``direction``."""
+    """Carry the suture around the other tool ``turns`` times in ``direction``.
+
+    Two phases, each a minimum-jerk path through the inverse kinematics with
+    peak tip speed ``speed``: the approach to the circle, then the loop. The
+    roll is kept. Fails when a path leaves the joint limits, when the carrying
+    robot is the one wrapped around, or when the tip is not back within
+    :attr:`TOLERANCE` [m] of the loop's end :attr:`SETTLE_S` [s] after the path.
+    """
 
     name: ClassVar[str] = "wrap"
     Params: ClassVar[type[SkillParams]] = WrapParams
@@ -47,6 +61,128 @@ class Wrap(Skill):
         "bent-tip-grasper",
     )
 
+    HEIGHT: ClassVar[float] = 0.01
+    """Height of the loop's plane up the other tool's shaft from its tip [m]."""
+    TOLERANCE: ClassVar[float] = 1e-3
+    """Tip position tolerance at the end [m]."""
+    SETTLE_S: ClassVar[float] = 1.0
+    """Time after the path to reach the tolerance [s]."""
+
+    def __init__(self, params: SkillParams) -> None:
+        super().__init__(params)
+        self._robot = ""
+        self._base: Any = None
+        self._paths: list[Any] = []
+        self._failure = ""
+        self._t0 = 0.0
+        self._goal: Any = None
+        self.centre: Any = None
+        self.axis: Any = None
+        self.sign = 1.0
+        self._e1: Any = None
+        self._e2: Any = None
+
+    def loop_point(self, s: float) -> Any:
+        """Tip position on the loop [m] at fraction ``s`` of it."""
+        import math
+
+
+        p = self.params
+        assert isinstance(p, WrapParams)
+        phi = self.sign * 2.0 * math.pi * p.turns * s
+        return self.centre + p.radius * (math.cos(phi) * self._e1 + math.sin(phi) * self._e2)
+
+    def start(self, ctx: Any) -> None:
+        """Locate the other tool's shaft and plan the approach and the loop.
+
+        Args:
+            ctx: the :class:`suture_engine.runtime.context.SkillContext`.
+        """
+        import math
+
+        import numpy as np
+
+        from skills.tool_path import ToolPath, duration_for, ik_world, joint_box, tip_world
+
+        p = self.params
+        assert isinstance(p, WrapParams)
+        self._robot = ctx.robot(p.robot)
+        other = ctx.robot(p.around)
+        self._base = ctx.base_poses.get(self._robot)
+        self._t0 = ctx.t0
+        self._failure = ""
+        self.sign = 1.0 if p.direction == "front-to-back" else -1.0
+        q0 = np.array(ctx.start.robots[self._robot].q)
+        roll = float(q0[2])
+        other_base = ctx.base_poses.get(other)
+        o2 = np.zeros(3) if other_base is None else np.asarray(other_base[0], dtype=float)
+        t2 = tip_world(ctx.start.robots[other].q, other_base)
+        axis = o2 - t2
+        self.axis = axis / np.linalg.norm(axis)
+        self.centre = t2 + self.HEIGHT * self.axis
+        tip = tip_world(q0, self._base)
+        radial = tip - self.centre
+        radial = radial - (radial @ self.axis) * self.axis
+        if float(np.linalg.norm(radial)) < 1e-9:
+            radial = np.cross(self.axis, (1.0, 0.0, 0.0))
+            if float(np.linalg.norm(radial)) < 1e-9:
+                radial = np.cross(self.axis, (0.0, 1.0, 0.0))
+        self._e1 = radial / np.linalg.norm(radial)
+        self._e2 = np.cross(self.axis, self._e1)
+        a = tip
+        b = self.loop_point(0.0)
+        approach = ToolPath(
+            lambda s: ik_world(a + s * (b - a), roll, self._base),
+            duration_for(float(np.linalg.norm(b - a)), p.speed),
+        )
+        loop = ToolPath(
+            lambda s: ik_world(self.loop_point(s), roll, self._base),
+            duration_for(2.0 * math.pi * p.radius * p.turns, p.speed),
+        )
+        self._paths = [approach, loop]
+        self._goal = self.loop_point(1.0)
+        if self._robot == other:
+            self._failure = "a tool cannot wrap around itself"
+        box = joint_box(ctx, self._robot)
+        for path in self._paths:
+            self._failure = self._failure or path.first_violation(box)
+
     def step(self, ctx: Any, obs: Any) -> Any:
-        """Not available yet: running arrives with the runtime and suturing work."""
-        raise SkillNotAvailable(self.name)
+        """Track the approach then the loop; success back at the loop's start.
+
+        Args:
+            ctx: the skill context.
+            obs: this tick's observation.
+
+        Returns:
+            A :class:`suture_engine.runtime.observation.StepResult`.
+        """
+        import numpy as np
+
+        from skills.tool_path import hold_command, tip_world
+        from suture_engine.runtime.observation import (
+            Command,
+            RobotCommand,
+            SkillStatus,
+            StepResult,
+        )
+
+        if self._failure:
+            q = obs.robots[self._robot].q
+            return StepResult(hold_command(self._robot, q), SkillStatus.FAILURE, self._failure)
+        t = obs.t - self._t0
+        first, loop = self._paths
+        if t < first.duration:
+            q, qd, _ = first.sample(t)
+            return StepResult(Command({self._robot: RobotCommand.position(q, qd)}))
+        t_loop = t - first.duration
+        q, qd, done = loop.sample(t_loop)
+        cmd = Command({self._robot: RobotCommand.position(q, qd)})
+        if not done:
+            return StepResult(cmd)
+        err = float(np.linalg.norm(tip_world(obs.robots[self._robot].q, self._base) - self._goal))
+        if err <= self.TOLERANCE:
+            return StepResult(cmd, SkillStatus.SUCCESS)
+        if t_loop >= loop.duration + self.SETTLE_S:
+            return StepResult(cmd, SkillStatus.FAILURE, f"tool tip {err * 1e3:.2f} mm off the loop")
+        return StepResult(cmd)
