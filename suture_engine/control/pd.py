@@ -183,8 +183,15 @@ class PDController:
         if self.friction:
             src = vrl if self.friction_sign is FrictionSign.DESIRED else vl
             fc, db = self._fc, self.friction_deadband
-            for i, v in enumerate(src):
-                out[i] += fc[i] * coulomb_sign(v, db)
+            if db > 0.0:
+                for i, v in enumerate(src):
+                    out[i] += fc[i] * coulomb_sign(v, db)
+            else:  # hard sign, inlined: this is the 1 kHz path
+                for i, v in enumerate(src):
+                    if v > 0.0:
+                        out[i] += fc[i]
+                    elif v < 0.0:
+                        out[i] -= fc[i]
         tau = self._tau
         tau[:] = out
         return tau
