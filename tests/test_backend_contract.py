@@ -197,3 +197,29 @@ def test_unknown_backend_suggests_names() -> None:
         registry.create("pybulet")
     assert err.value.suggestions[0] == "pybullet"
     assert {"pybullet", "replay", "ideal"} <= set(registry.available())
+
+
+def test_pybullet_force_noise_and_delay_follow_the_scene_and_the_seed() -> None:
+    noisy = SimpleNamespace(
+        **vars(SCENE), physics=SimpleNamespace(force_noise=0.05, measurement_delay=0.003)
+    )
+    be = registry.create("pybullet")
+    try:
+        runs = {}
+        for seed in (1, 1, 2):
+            ms = [be.reset(noisy, seed)]
+            for k in range(10):
+                be.apply(_torques(ms[-1], k))
+                be.step()
+                ms.append(be.observe())
+            runs.setdefault(seed, []).append(
+                np.array([m.robots["endobot_1"].base_wrench for m in ms])
+            )
+        np.testing.assert_array_equal(runs[1][0], runs[1][1])  # same seed, same noise
+        assert np.abs(runs[1][0] - runs[2][0])[5:, :3].max() > 1e-3  # another seed differs
+        ideal = _drive(be, 1, 10)
+        clean = np.array([m.robots["endobot_1"].base_wrench for m in ideal])
+        noise = (runs[1][0] - clean)[5:, :3]
+        assert 0.01 < float(noise.std()) < 0.2  # about the declared 0.05 N
+    finally:
+        be.close()

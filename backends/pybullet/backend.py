@@ -4,8 +4,9 @@ Each robot of the scene stands at its base pose (the base origin is the RCM);
 torques are applied at the control rate (1 kHz) and PyBullet steps once per
 tick. Measurements are what the real robot has: encoder positions and the base
 force/torque sensor, through the sensor models of :mod:`backends.pybullet.sensors`
-(seeded, so a seed gives the same run). Headless (``p.DIRECT``) by default;
-``gui=True`` opens a window.
+(seeded, so a seed gives the same run; the scene's ``physics.force_noise`` and
+``physics.measurement_delay`` set the base sensor's noise and delay). Headless
+(``p.DIRECT``) by default; ``gui=True`` opens a window.
 
 The surgical scene (tissue, suture, tool jaws) of :mod:`backends.pybullet.scene`
 is not attached yet: ``ground_truth`` reports the robots' true joint states and
@@ -127,6 +128,7 @@ class PyBulletBackend:
         self._hands = []
         self.tick = 0
         base_positions = {}
+        ft_model = self._ft_model(scene)
         for i, (name, (pos, rpy, tool)) in enumerate(sorted(self._bases(scene).items())):
             sim = EndoBotSim(
                 self.client,
@@ -134,6 +136,7 @@ class PyBulletBackend:
                 base_orientation=_quaternion(rpy),
                 q0=self._q0.get(name, DEFAULT_Q0),
                 friction=self.friction,
+                ft_sensor=ft_model,
                 seed=seed * 1000 + i,
             )
             self.robots[name] = sim
@@ -157,6 +160,24 @@ class PyBulletBackend:
             base_positions=base_positions,
         )
         return self.observe()
+
+    def _ft_model(self, scene: Any) -> Any:
+        """The base F/T sensor's imperfections from the scene's physics settings.
+
+        ``force_noise`` [N] is the standard deviation on the three force channels;
+        ``measurement_delay`` [s] delays the whole wrench by whole control ticks.
+        """
+        from backends.pybullet.sensors import SensorModel
+
+        physics = getattr(scene, "physics", None)
+        noise = float(getattr(physics, "force_noise", 0.0) or 0.0)
+        delay = float(getattr(physics, "measurement_delay", 0.0) or 0.0)
+        if noise == 0.0 and delay == 0.0:
+            return None
+        return SensorModel(
+            noise_std=(noise, noise, noise, 0.0, 0.0, 0.0),
+            delay_ticks=round(delay / self.dt),
+        )
 
     def _need(self) -> Any:
         if self.client is None:
