@@ -250,6 +250,44 @@ def report(
     raise typer.Exit(report_command(trace, out=out))
 
 
+@app.command()
+def sweep(
+    file: Annotated[Path, typer.Argument(help="The procedure file (YAML).")],
+    runs: Annotated[int, typer.Option(help="Number of runs.")],
+    out: Annotated[Path, typer.Option(help="Output folder (a resume uses the same one).")],
+    vary: Annotated[
+        list[str] | None,
+        typer.Option(help="name=normal(mu,sigma) | uniform(a,b) | choice(a,b,...) (repeatable)."),
+    ] = None,
+    workers: Annotated[int, typer.Option(help="Worker processes.")] = 1,
+    ray: Annotated[
+        str | None, typer.Option(help="Run on Ray: local, auto or a cluster address.")
+    ] = None,
+    seed: Annotated[int, typer.Option(help="Base seed (each run's seed derives from it).")] = 0,
+    set_: Annotated[
+        list[str] | None,
+        typer.Option("--set", help="Fixed override for every run: name=value (repeatable)."),
+    ] = None,
+    max_time: Annotated[float, typer.Option(help="Simulated time limit per run [s].")] = 300.0,
+) -> None:
+    """Run a procedure N times with varied parameters; results.csv, summary, plot."""
+    from suture_engine.report.cli_sweep import sweep_command
+
+    raise typer.Exit(
+        sweep_command(
+            file,
+            runs=runs,
+            vary=vary or [],
+            out=out,
+            workers=workers,
+            ray=ray,
+            seed=seed,
+            sets=set_ or [],
+            max_time=max_time,
+        )
+    )
+
+
 def main() -> None:
     """Entry point of the ``suture`` console script."""
     app()
