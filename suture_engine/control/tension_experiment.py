@@ -136,7 +136,9 @@ class TensionRun(NamedTuple):
         reference: force reference f_r [N].
         force_command: u_f [N].
         line_error: distance of the tip from the constraint line [m].
-        rms_error: e_RMS [N].
+        rms_error: e_RMS against the desired tension F_des [N].
+        rms_reference: e_RMS against the reference actually used, f_r [N] (the
+            same as ``rms_error`` for a step; smaller for the modified reference).
         max_force: e_inf = max |f_m| [N].
         max_true: max of the true tension [N].
         final_error: mean |f_m - F_des| over the last second [N].
@@ -150,6 +152,7 @@ class TensionRun(NamedTuple):
     force_command: FloatArray
     line_error: FloatArray
     rms_error: float
+    rms_reference: float
     max_force: float
     max_true: float
     final_error: float
@@ -277,6 +280,7 @@ def run_tension_experiment(
         force_command=data[:, 4],
         line_error=data[:, 5],
         rms_error=float(np.sqrt(np.mean((fm - target) ** 2))),
+        rms_reference=float(np.sqrt(np.mean((fm - data[:, 3]) ** 2))),
         max_force=float(np.max(np.abs(fm))),
         max_true=float(np.max(ft_true)),
         final_error=float(np.mean(np.abs(fm[last] - target))),
