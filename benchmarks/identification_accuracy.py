@@ -6,8 +6,10 @@ the joint for --duration seconds with the same amplitude limit and band, and
 both the differential (3.60-3.64) and the energy model (3.65-3.75, friction
 first) are fitted to the same record. "Realistic" encoders are quantised at
 2000 counts per motor revolution (2.3e-5 rad at the yaw/pitch joints) with
-Gaussian noise of --noise rad (and m). Prints the relative error of I and ml
-(and of Fc, Fv from the sweeps), and the regressor's condition number (3.54).
+Gaussian noise of --noise rad (and m). Prints the relative errors of I, ml,
+Fc and Fv (differential rows: the fit's own Fc, Fv; energy rows: the sweep's,
+since the energy fit takes friction as given) and the regressor's condition
+number (3.54).
 Saves a bar chart of the worst |error| per signal.
 
     python benchmarks/identification_accuracy.py --out results/identification
