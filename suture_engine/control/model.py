@@ -42,7 +42,8 @@ class ControlModel:
     Attributes:
         mass_matrix: ``q -> M^(q)`` [kg m^2 / kg], shape ``(n, n)`` (3.38-3.39).
         coriolis_matrix: ``(q, qd) -> C^(q, qd)``, shape ``(n, n)`` (3.40).
-        gravity_vector: ``q -> G^(q)`` [N m / N], shape ``(n,)`` (3.41, 5.2).
+        gravity_vector: ``q -> G^(q)`` [N m / N], shape ``(n,)`` (3.41, 5.2). The
+            EndoBot model returns one reused buffer: copy the result to keep it.
         coulomb: estimated Coulomb coefficients ``Fc^`` [N m / N], shape ``(n,)`` (5.19).
         viscous: estimated viscous coefficients ``Fv^`` [N m s / N s], shape ``(n,)``.
         coriolis_vector: optional ``(q, qd) -> C^(q, qd) qd``, cheaper than the matrix
