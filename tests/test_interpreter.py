@@ -430,3 +430,27 @@ def test_summary_is_written_atomically(tmp_path: Path, monkeypatch: pytest.Monke
         write_summary(target, dataclasses.replace(s, outcome="failed"))
     assert json.loads(target.read_text())["outcome"] == "succeeded"  # old file intact
     assert [p.name for p in tmp_path.iterdir()] == ["summary.json"]  # no temp left behind
+
+
+def test_use_states_are_inlined_and_run_in_order(tmp_path: Path) -> None:
+    from suture_engine.language.loader import load
+    from suture_engine.runtime.plan import compile_procedure
+
+    loaded = load(PROCS / "nested.yaml")
+    assert loaded.problems == []
+    plan = compile_procedure(loaded.procedure)
+    assert plan.initial == "stitcher-part.first"
+    assert plan.steps["stitcher-part.second"].on_done == "grasper-part.first"
+    assert plan.steps["grasper-part.second"].on_done == "finished"
+    assert plan.steps["grasper-part.first"].robots == ("endobot_2",)
+    assert set(plan.terminals) == {"finished"}  # the sub-procedure's success is inlined
+    result = run_procedure(PROCS / "nested.yaml", backend="ideal", out=tmp_path / "run")
+    assert result.summary.outcome == "succeeded"
+    dests = [dst for _, _, dst, _ in _transitions(result.trace)]
+    assert dests == [
+        "autonomous/stitcher-part.first",
+        "autonomous/stitcher-part.second",
+        "autonomous/grasper-part.first",
+        "autonomous/grasper-part.second",
+        "finished",
+    ]
