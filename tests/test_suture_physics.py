@@ -46,8 +46,10 @@ def _tighten(knot: str, segments: int) -> tuple[object, object, object, float]:
 
 def _check_held(result, span: float, length: float = 0.3) -> None:  # type: ignore[no-untyped-def]
     assert result.reached, result
-    # The knot holds: the grips still transmit (almost) the full 2 N after a 1 s hold ...
-    assert result.min_hold_force > 1.8, result
+    # The knot holds: it may settle a little under load (a brief dip), but never slips
+    # through, and over the last half second of a 1 s hold the grips transmit ~2 N ...
+    assert result.min_hold_force > 1.5, result
+    assert result.settled_force > 1.8, result
     # ... and the ends are still closer than the thread's length (a slipped knot straightens).
     assert span < 0.97 * length
     assert result.max_stretch < 0.05, result

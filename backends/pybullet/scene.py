@@ -352,7 +352,9 @@ class PullResult(NamedTuple):
         reached: whether both graspers transmitted the target tension.
         time_to_target: simulated time until then [s] (nan if never).
         final_force: mean grip force at the end of the hold [N].
-        min_hold_force: smallest mean grip force during the hold [N].
+        min_hold_force: smallest mean grip force during the hold [N] (after its first
+            10 %, the pull's transient).
+        settled_force: smallest mean grip force over the hold's last half [N].
         max_stretch: largest thread stretch seen during the hold [-].
     """
 
@@ -360,6 +362,7 @@ class PullResult(NamedTuple):
     time_to_target: float
     final_force: float
     min_hold_force: float
+    settled_force: float
     max_stretch: float
 
 
@@ -420,7 +423,8 @@ def pull_ends(
         t += dt
     if not hold_forces:
         force = 0.5 * (left.grip_force() + right.grip_force())
-        return PullResult(False, reached_at, force, force, scene.suture.stretch())
+        return PullResult(False, reached_at, force, force, force, scene.suture.stretch())
     # The first steps of the hold still carry the pull's transient; judge the last 90 %.
     tail = hold_forces[len(hold_forces) // 10 :]
-    return PullResult(True, reached_at, hold_forces[-1], min(tail), max(stretches))
+    settled = hold_forces[len(hold_forces) // 2 :]
+    return PullResult(True, reached_at, hold_forces[-1], min(tail), min(settled), max(stretches))
