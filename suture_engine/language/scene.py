@@ -18,8 +18,10 @@ from suture_engine.language.units import Stiffness as StiffnessUnit
 __all__ = [
     "GRAVITY",
     "KNOT_PULL_STRENGTH_KG",
+    "ON_SURFACE_TOLERANCE",
     "SUTURE_DIAMETER_MM",
     "TISSUE_PULLOUT_N",
+    "UNIT_NORMAL_TOLERANCE",
     "ForcePlant",
     "JointLimits",
     "Physics",
@@ -31,6 +33,11 @@ __all__ = [
     "ToolType",
     "Wound",
 ]
+
+UNIT_NORMAL_TOLERANCE = 1e-3
+"""Largest accepted deviation of the tissue normal's length from 1 [-]."""
+ON_SURFACE_TOLERANCE = 1e-3
+"""Largest distance of a wound end or a bite's entry/exit point from the tissue surface [m]."""
 
 GRAVITY = 9.80665
 """Standard gravity [m/s^2], converts the table's kilograms-force to newtons."""
@@ -143,9 +150,30 @@ class Tissue(_Model):
     @field_validator("normal")
     @classmethod
     def _nonzero(cls, v: tuple[float, float, float]) -> tuple[float, float, float]:
-        if math.hypot(*v) < 1e-12:
+        norm = math.hypot(*v)
+        if norm < 1e-12:
             raise ValueError("the normal must be non-zero")
+        if abs(norm - 1.0) > UNIT_NORMAL_TOLERANCE:
+            raise ValueError(f"the normal must be a unit vector, its length is {norm:.6g}")
         return v
+
+    def height(self, point: tuple[float, float, float]) -> float:
+        """Signed distance of ``point`` from the tissue surface along the normal [m].
+
+        The surface is the plane through the wound's start with the tissue's normal.
+        """
+        pairs = zip(point, self.wound.start, self.normal, strict=True)
+        return sum((p - s) * n for p, s, n in pairs)
+
+    @model_validator(mode="after")
+    def _wound_on_surface(self) -> Tissue:
+        end = self.height(self.wound.end)
+        if abs(end) > ON_SURFACE_TOLERANCE:
+            raise ValueError(
+                f"the wound's end is {end * 1e3:.3g} mm off the tissue surface "
+                "(the plane through its start with the tissue normal)"
+            )
+        return self
 
 
 class Suture(_Model):

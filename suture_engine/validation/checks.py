@@ -25,6 +25,7 @@ from typing import TYPE_CHECKING, Any
 
 from suture_engine.language.model import MAX_RETRY, FailurePolicy
 from suture_engine.language.refs import SceneRef
+from suture_engine.language.scene import ON_SURFACE_TOLERANCE
 from suture_engine.language.units import Unit
 from suture_engine.validation.problem import Problem
 from suture_engine.validation.reach import DEFAULT_SINGULARITY_MARGIN, check_reach, world_to_base
@@ -37,6 +38,10 @@ __all__ = ["check_procedure", "validate_file"]
 
 PLANNED_EVENTS = frozenset({"done"})
 """Events that advance the procedure as planned; every other event is a failure."""
+
+
+_BITE_POINTS = frozenset({"entry", "exit"})
+"""Skill parameters naming a point where the needle crosses the tissue surface."""
 
 
 def validate_file(
@@ -349,6 +354,17 @@ def _state_checks(proc: Procedure, state: LoadedState) -> list[Problem]:
                     "unknown-point", f"the scene has no point {value!r}{hint}", (*where, name)
                 )
             )
+        elif "point" in kinds and scene is not None and name in _BITE_POINTS:
+            height = scene.tissue.height(scene.tissue.points[value])
+            if abs(height) > ON_SURFACE_TOLERANCE:
+                out.append(
+                    src.problem(
+                        "off-tissue",
+                        f"{name} point {value!r} is {height * 1e3:.3g} mm off the tissue "
+                        "surface; a bite enters and leaves on the surface",
+                        (*where, name),
+                    )
+                )
     for name, info in fields.items():
         value = getattr(params, name)
         if limit is None or "tension" not in name or not isinstance(value, float):
