@@ -28,13 +28,21 @@ def _load(trace: Path, err: TextIO) -> tuple[int, object | None]:
         _error(err, f"{trace}: no such file")
         return 2, None
     try:
-        return 0, load_trace(trace)
+        data = load_trace(trace)
     except TraceIOError as exc:
         _error(err, f"{exc.code}: {exc.message}")
         return 2, None
     except TraceError as exc:
         _error(err, f"{exc.code}: {exc.message}")
         return 1, None
+    if data.status.message_count == 0:
+        _error(
+            err,
+            f"trace-empty: {trace}: no readable message ({data.status.reason} at byte "
+            f"{data.status.stop_offset})",
+        )
+        return 1, None
+    return 0, data
 
 
 def plot_command(

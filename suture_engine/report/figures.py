@@ -358,9 +358,11 @@ def _task_path(data: TraceData) -> RenderedFigure:
         topic = channels.joint_state_topic(robot) if data.robots else "/joint_state/<robot>"
         _, q = _matrix(data.get(topic), "position")
         if q.shape[0] == 0 or q.shape[1] != 4:
-            missing.append(topic)
+            if q.shape[0] == 0:
+                missing.append(topic)
+            what = topic if q.shape[0] == 0 else f"{topic} as the EndoBot's 4 joints"
             for ax in row:
-                _no_data(ax, topic)
+                _no_data(ax, what)
                 ax.set_title(f"{robot}: tool-tip path")
             continue
         p = np.array([forward_kinematics(qq).position for qq in q]) * 1e3
