@@ -15,7 +15,14 @@ import pytest
 
 from backends.pybullet.scene import build_scene, pull_ends
 from backends.pybullet.suture import InvalidSutureParams, SutureParams, knotted_path
-from backends.pybullet.tools import HOOK_MOUTH, Grasper, JawState, Stitcher, ToolError
+from backends.pybullet.tools import (
+    HOOK_MOUTH,
+    BentTipGrasper,
+    Grasper,
+    JawState,
+    Stitcher,
+    ToolError,
+)
 
 
 def _classify(points):  # type: ignore[no-untyped-def]
@@ -336,6 +343,31 @@ def _drag_through(f_static: float, f_viscous: float, speed: float) -> tuple[floa
     finally:
         p.disconnect(physicsClientId=c)
     return float(np.mean(forces)), float(np.mean(friction))
+
+
+def test_bent_tip_jaws_follow_the_universal_joint() -> None:
+    """Jaw pose = shaft pose, then Rx(bend_x) Ry(bend_y) at the joint, then tip_length along
+    the bent z; checked against scipy's rotations."""
+    import pybullet as p
+    from scipy.spatial.transform import Rotation
+
+    c = p.connect(p.DIRECT)
+    try:
+        tool = BentTipGrasper.create(c, "bent", (0.0, 0.0, 0.1), hook=False)
+        shaft_q = Rotation.from_euler("xyz", [0.3, -0.2, 0.5])
+        joint = np.array([0.01, -0.02, 0.08])
+        tool.set_bend(0.4, -0.7)
+        tool.set_pose(tuple(joint), tuple(shaft_q.as_quat()))
+        for _ in range(300):
+            tool.step()
+            p.stepSimulation(physicsClientId=c)
+        pos, orn = tool.pose()
+    finally:
+        p.disconnect(physicsClientId=c)
+    jaw = shaft_q * Rotation.from_euler("XYZ", [0.4, -0.7, 0.0])
+    expected = joint + jaw.apply([0.0, 0.0, tool.tip_length])
+    assert np.allclose(pos, expected, atol=2e-4)
+    assert (Rotation.from_quat(orn) * jaw.inv()).magnitude() < 1e-2
 
 
 def test_suture_params_are_validated() -> None:

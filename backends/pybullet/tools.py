@@ -513,9 +513,10 @@ class Grasper(Tool):
 class BentTipGrasper(Grasper):
     """Grasper whose jaws sit behind a universal joint (for algorithm 3).
 
-    The shaft pose is commanded with :meth:`set_pose`; the jaw pose is the shaft pose
-    followed by a rotation ``bend_x`` about x, ``bend_y`` about y [rad] at the joint and a
-    ``tip_length`` [m] offset along the bent +z.
+    The shaft pose is commanded with :meth:`set_pose`; the jaw frame is the shaft frame
+    turned by ``bend_x`` [rad] about the shaft's x (the joint's outer axis), then by
+    ``bend_y`` [rad] about the turned y (its inner axis), i.e. Rx(bend_x) Ry(bend_y), and
+    the jaw centre sits ``tip_length`` [m] along the bent z.
     """
 
     bend_x: float = 0.0
@@ -538,7 +539,11 @@ class BentTipGrasper(Grasper):
         import pybullet as p
 
         self._shaft = (position, orientation)
-        bend = p.getQuaternionFromEuler([self.bend_x, self.bend_y, 0.0])
+        # Universal joint: the outer axis x is fixed in the shaft, the inner axis y turns
+        # with it, so the jaw frame is Rx(bend_x) Ry(bend_y) in the shaft frame.
+        outer = p.getQuaternionFromEuler([self.bend_x, 0.0, 0.0])
+        inner = p.getQuaternionFromEuler([0.0, self.bend_y, 0.0])
+        _, bend = p.multiplyTransforms([0, 0, 0], outer, [0, 0, 0], inner)
         pos, orn = p.multiplyTransforms(
             position, orientation, [0, 0, 0], bend, physicsClientId=self.client
         )
