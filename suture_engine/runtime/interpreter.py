@@ -45,6 +45,7 @@ from suture_engine.runtime.observation import (
 from suture_engine.runtime.operator import OperatorEvent
 from suture_engine.runtime.recorder import Recorder
 from suture_engine.runtime.summary import RunSummary
+from suture_engine.runtime.trajectory import rpy_matrix
 
 __all__ = ["GRAVITY", "Interpreter", "OperatorSource"]
 
@@ -161,26 +162,7 @@ class Interpreter:
         robots = getattr(self.scene, "robots", None) or {}
         for name, spec in robots.items():
             base = spec.base
-            r, p, y = base.rpy
-            cr, sr, cp, sp, cy, sy = (
-                np.cos(r),
-                np.sin(r),
-                np.cos(p),
-                np.sin(p),
-                np.cos(y),
-                np.sin(y),
-            )
-            rot = (
-                cy * cp,
-                cy * sp * sr - sy * cr,
-                cy * sp * cr + sy * sr,
-                sy * cp,
-                sy * sp * sr + cy * cr,
-                sy * sp * cr - cy * sr,
-                -sp,
-                cp * sr,
-                cp * cr,
-            )
+            rot = rpy_matrix(base.rpy)
             out[name] = (tuple(float(v) for v in base.position), tuple(float(v) for v in rot))
         return out
 

@@ -8,6 +8,7 @@ velocity and acceleration at both ends; its peak rate is ``1.875 / T`` at
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from typing import Any, NamedTuple
 
@@ -18,6 +19,7 @@ __all__ = [
     "MinJerk",
     "MinJerkSample",
     "min_jerk_duration",
+    "rpy_matrix",
     "tool_tip_world",
     "world_to_base",
 ]
@@ -74,6 +76,30 @@ def min_jerk_duration(distance: float, peak_speed: float, minimum: float = 0.05)
     if peak_speed <= 0.0:
         raise ValueError("peak_speed must be positive")
     return max(PEAK_RATE * abs(distance) / peak_speed, minimum)
+
+
+def rpy_matrix(rpy: Sequence[float]) -> tuple[float, ...]:
+    """Row-major R = Rz(yaw) Ry(pitch) Rx(roll) of roll-pitch-yaw angles [rad]."""
+    r, p, y = (float(a) for a in rpy)
+    cr, sr, cp, sp, cy, sy = (
+        math.cos(r),
+        math.sin(r),
+        math.cos(p),
+        math.sin(p),
+        math.cos(y),
+        math.sin(y),
+    )
+    return (
+        cy * cp,
+        cy * sp * sr - sy * cr,
+        cy * sp * cr + sy * sr,
+        sy * cp,
+        sy * sp * sr + cy * cr,
+        sy * sp * cr - cy * sr,
+        -sp,
+        cp * sr,
+        cp * cr,
+    )
 
 
 def _pose(base: Any) -> tuple[FloatArray, FloatArray]:
