@@ -28,7 +28,12 @@ app = typer.Typer(
 @app.command()
 def run(
     file: Annotated[Path, typer.Argument(help="The procedure file (YAML).")],
-    backend: Annotated[str, typer.Option(help="pybullet (default) or replay.")] = "pybullet",
+    backend: Annotated[
+        str,
+        typer.Option(
+            help="pybullet (default), replay (with --trace) or ideal (model only, for tests)."
+        ),
+    ] = "pybullet",
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
     set_: Annotated[
         list[str] | None,
@@ -42,7 +47,7 @@ def run(
         bool, typer.Option(help="Operator keys: l lock, m manual, r resume, a abort.")
     ] = False,
     gui: Annotated[bool, typer.Option(help="Open the simulator window.")] = False,
-    max_time: Annotated[float, typer.Option(help="Simulated time limit [s].")] = 300.0,
+    max_time: Annotated[float, typer.Option(help="Simulated time limit, in seconds.")] = 300.0,
     trace: Annotated[
         Path | None, typer.Option(help="With --backend replay: the recorded trace to serve.")
     ] = None,
