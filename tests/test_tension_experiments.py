@@ -32,6 +32,8 @@ def test_active_damping_lowers_the_contact_spike() -> None:
     assert bare.max_force > TARGET + 3.0  # the contact spike
     assert damped.max_force < bare.max_force - 3.0
     assert damped.max_true < bare.max_true  # the simulated suture agrees with the estimate
+    # the base-sensor estimate in closed loop, against the simulated suture's tension
+    assert abs(damped.measured[-1] - damped.true_tension[-1]) < 0.2
 
 
 @pytest.mark.slow
