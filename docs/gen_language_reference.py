@@ -15,8 +15,8 @@ from __future__ import annotations
 import argparse
 import ast
 import inspect
-import itertools
 import io
+import itertools
 import json
 import sys
 import textwrap
