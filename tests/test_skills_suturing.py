@@ -524,3 +524,59 @@ def test_wait_for_operator_holds_everyone_and_keeps_running(scene: Any) -> None:
     assert all(r.status is SkillStatus.RUNNING for r in run.results)
     for name in q0:
         assert np.allclose(run.commanded(name), q0[name])
+
+
+# ----------------------------------------------------------------- on PyBullet
+def _trace_run(tmp_path: Path) -> tuple[dict[str, Any], Any]:
+    import json
+    import subprocess
+    import sys
+
+    out = tmp_path / "run"
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "from suture_engine.cli import main; main()",
+            "run",
+            str(ROOT / "tests" / "procedures" / "skills-grasp-rotate.yaml"),
+            "--out",
+            str(out),
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=240,
+        check=False,
+    )
+    assert res.returncode == 0, res.stdout + res.stderr
+    from suture_engine.trace.reader import TraceReader
+
+    return json.loads((out / "summary.json").read_text()), TraceReader(out / "trace.mcap")
+
+
+def test_grasp_rotate_release_on_pybullet(tmp_path: Path) -> None:
+    summary, trace = _trace_run(tmp_path)
+    assert summary["outcome"] == "succeeded" and summary["final_state"] == "finished"
+    assert summary["violations"] == [] and summary["retries"] == 0
+    moves = [m.data for m in trace.messages(["/transitions"])]
+    assert [m["dest"] for m in moves] == [
+        "autonomous/grab",
+        "autonomous/rotate",
+        "autonomous/let-go",
+        "finished",
+    ]
+    times = [m.log_time_ns for m in trace.messages(["/transitions"])]
+    scene = load_procedure(ROOT / "tests" / "procedures" / "skills-grasp-rotate.yaml").scene
+    q1 = [(m.log_time_ns, m.data["position"]) for m in trace.messages(["/joint_state/endobot_1"])]
+    q2 = {m.log_time_ns: m.data["position"] for m in trace.messages(["/joint_state/endobot_2"])}
+    # the measured stitcher tip during the rotation: on a circle about OP (tracking error only)
+    o = np.array(scene.robots["endobot_1"].base.position)
+    p = tip(scene, "endobot_2", q2[times[1]]) + np.array((0.0, 0.0, 0.01))
+    axis = (p - o) / np.linalg.norm(p - o)
+    during = [tip(scene, "endobot_1", q) for t, q in q1 if times[1] <= t <= times[2]]
+    rel = np.array(during) - o
+    radial = np.linalg.norm(rel - np.outer(rel @ axis, axis), axis=1)
+    assert np.ptp(radial) < 0.5e-3 and np.ptp(rel @ axis) < 0.5e-3
+    turned = Rotation.from_rotvec(math.radians(60) * axis).as_matrix() @ rel[0]
+    assert np.linalg.norm(rel[-1] - turned) < 0.5e-3  # the tip moved ~64 mm
