@@ -42,8 +42,10 @@ def _closed_loop(
     reference: float | np.ndarray,
     seconds: float,
     clip: float = math.inf,
+    delay_ticks: int = 0,
 ) -> np.ndarray:
-    """Simulate; return the measured force per sample."""
+    """Simulate; return the measured force per sample (the force reaches the
+    controller ``delay_ticks`` samples late, (7.34))."""
     ad, bd = _plant(m, b, k)
     n = round(seconds / DT)
     refs = np.broadcast_to(np.asarray(reference, dtype=float), (n,))
@@ -52,7 +54,8 @@ def _closed_loop(
     for i in range(n):
         f = k * x[0]
         out[i] = f
-        u = min(max(ctrl.update(float(refs[i]), f, x[1]), -clip), clip)
+        f_meas = out[i - delay_ticks] if i >= delay_ticks else 0.0
+        u = min(max(ctrl.update(float(refs[i]), f_meas, x[1]), -clip), clip)
         x = ad @ x + bd * u
     return out
 
@@ -72,6 +75,25 @@ def test_stable_just_below_and_unstable_just_above_the_routh_bound(kp: float, kv
     assert late < 0.5 * early  # decaying
     early, late = envelopes[1.1]
     assert late > 2.0 * early  # growing
+
+
+def test_delayed_measurement_bound() -> None:
+    """With a 2 ms force delay, Kp = 10 (Fig. 7.18): stable at 0.9 and unstable at 1.1
+    times the bound of (7.41); the delay-free bound would call both stable."""
+    m, b, k, kp, delay = 1.0, 1.0, 10.0, 10.0, 2e-3
+    bound = integral_gain_bound(m, b, k, kp, 0.0, delay)
+    assert integral_gain_bound(m, b, k, kp) > 1.1 * bound
+    envelopes = {}
+    for factor in (0.9, 1.1):
+        ctrl = ExplicitForceController(kp, factor * bound, 0.0, DT)
+        f = _closed_loop(ctrl, m, b, k, 1.0, 120.0, delay_ticks=round(delay / DT))
+        err = np.abs(f - 1.0)
+        n = len(err)
+        envelopes[factor] = (err[n // 4 : n // 2].max(), err[3 * n // 4 :].max())
+    early, late = envelopes[0.9]
+    assert late < 0.5 * early
+    early, late = envelopes[1.1]
+    assert late > 2.0 * early
 
 
 def test_integral_action_removes_the_steady_state_error() -> None:
