@@ -112,6 +112,7 @@ class TensionRegulate(Skill):
         self._limit = math.inf
         self._peak = 0.0
         self._last = 0.0
+        self._error = ""
 
     def start(self, ctx: Any) -> None:
         """Set up the direction rule, the tension estimator and the hybrid controller.
@@ -140,9 +141,15 @@ class TensionRegulate(Skill):
         start = ctx.start.robots[self._robot]
         q0 = np.asarray(start.q, dtype=float)
         geo = ctx.start.scene
-        rule = securing_directions(
-            geo.entry_point, geo.exit_point, p.throw, normal=geo.tissue_normal
-        )
+        self._error = ""
+        try:
+            rule = securing_directions(
+                geo.entry_point, geo.exit_point, p.throw, normal=geo.tissue_normal
+            )
+        except ValueError as exc:  # no entry/exit points declared: no securing direction
+            self._error = f"no securing direction (7.1-7.3): {exc}"
+            self._ctrl = None
+            return
         tool = ""
         if ctx.scene is not None and self._robot in ctx.scene.robots:
             tool = str(ctx.scene.robots[self._robot].tool)
@@ -195,8 +202,11 @@ class TensionRegulate(Skill):
         assert isinstance(p, TensionRegulateParams)
         if ctx is None or obs is None:
             raise SkillNotAvailable(self.name, "step needs the runtime's context and observation")
-        if self._ctrl is None:
+        if self._ctrl is None and not self._error:
             self.start(ctx)
+        if self._ctrl is None:
+            hold = Command({self._robot: RobotCommand.position(obs.robots[self._robot].q)})
+            return StepResult(hold, SkillStatus.FAILURE, self._error)
         ro = obs.robots[self._robot]
         est = self._est.update(ro.base_wrench, ro.q)
         tension = est.tension

@@ -107,3 +107,15 @@ def test_second_throw_pulls_the_other_way() -> None:
     assert statuses[-1] is SkillStatus.FAILURE
     assert true_tension == 0.0
     assert skill.metrics()["peak_tension_N"] < 0.5
+
+
+def test_without_entry_and_exit_points_it_fails_with_a_message() -> None:
+    q = np.array([0.0, 0.0, 0.0, 0.1])
+    ro = RobotObservation(q, np.zeros(4), np.zeros(6), ToolState("grasper"))
+    obs = Observation(0, 0.0, {"endobot_2": ro}, SceneGeometry())  # entry == exit
+    ctx = SkillContext(step="secure", roles={"grasper": "endobot_2"}, dt=1e-3, start=obs)
+    skill = TensionRegulate(TensionRegulateParams(robot="grasper", tension=5.0))
+    skill.start(ctx)
+    res = skill.step(ctx, obs)
+    assert res.status is SkillStatus.FAILURE
+    assert "securing direction" in res.message
