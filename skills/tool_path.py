@@ -4,7 +4,7 @@ A :class:`ToolPath` maps a path parameter ``s`` in [0, 1] to joints through the
 closed-form inverse kinematics (3.14-3.17) of a world-frame tool-tip point, and
 times ``s`` with the rest-to-rest minimum-jerk profile of
 :mod:`suture_engine.runtime.trajectory`. Velocities are ``dq/ds * ds/dt`` with
-``dq/ds`` from a central difference in ``s``.
+``dq/ds`` the slope of the tabulated path.
 """
 
 from __future__ import annotations
@@ -96,19 +96,31 @@ def hold_command(robot: str, q: Any, tool: Any = None) -> Any:
 class ToolPath:
     """Joints along a path ``q(s)``, s in [0, 1], timed by a minimum-jerk profile.
 
+    ``q(s)`` is tabulated once, one sample per :attr:`SAMPLE_S` [s] of motion
+    (between :attr:`MIN_SAMPLES` and :attr:`MAX_SAMPLES`), and interpolated
+    linearly in ``s`` each tick, so a tick costs no inverse kinematics.
+
     Args:
         joints_at: ``s -> q`` [rad, rad, rad, m].
         duration: T [s], > 0.
     """
 
-    DS = 1e-4
-    """Step of the central difference dq/ds [-]."""
+    SAMPLE_S = 0.004
+    """Motion time per table sample [s]."""
+    MIN_SAMPLES = 50
+    """Fewest table intervals."""
+    MAX_SAMPLES = 4000
+    """Most table intervals."""
 
     def __init__(self, joints_at: Callable[[float], FloatArray], duration: float) -> None:
         if not duration > 0.0:
             raise ValueError("duration must be positive")
         self.joints_at = joints_at
         self.duration = float(duration)
+        n = int(min(max(math.ceil(duration / self.SAMPLE_S), self.MIN_SAMPLES), self.MAX_SAMPLES))
+        self._n = n
+        self.table = np.array([joints_at(k / n) for k in range(n + 1)], dtype=np.float64)
+        self._slopes = np.diff(self.table, axis=0) * n
 
     def progress(self, t: float) -> tuple[float, float]:
         """Path parameter s [-] and its rate ds/dt [1/s] at ``t`` [s] after the start."""
@@ -120,19 +132,20 @@ class ToolPath:
     def sample(self, t: float) -> tuple[FloatArray, FloatArray, bool]:
         """Joints [rad, m], joint velocities [rad/s, m/s] and whether the path is over."""
         s, ds = self.progress(t)
-        q = self.joints_at(s)
-        lo, hi = max(s - self.DS, 0.0), min(s + self.DS, 1.0)
-        dq_ds = (self.joints_at(hi) - self.joints_at(lo)) / (hi - lo)
-        return q, dq_ds * ds, t >= self.duration
+        x = s * self._n
+        i = min(int(x), self._n - 1)
+        slope = self._slopes[i]
+        q = self.table[i] + (x - i) / self._n * slope
+        return q, slope * ds, t >= self.duration
 
-    def first_violation(self, box: JointBox | None, samples: int = 60) -> str:
+    def first_violation(self, box: JointBox | None) -> str:
         """The first joint-limit violation along the path (empty when none)."""
         if box is None:
             return ""
-        for s in np.linspace(0.0, 1.0, samples + 1):
-            why = box.violation(self.joints_at(float(s)))
+        for k, q in enumerate(self.table):
+            why = box.violation(q)
             if why:
-                return f"at s = {s:.2f}: {why}"
+                return f"at s = {k / self._n:.2f}: {why}"
         return ""
 
 

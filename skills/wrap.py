@@ -86,7 +86,6 @@ class Wrap(Skill):
         """Tip position on the loop [m] at fraction ``s`` of it."""
         import math
 
-
         p = self.params
         assert isinstance(p, WrapParams)
         phi = self.sign * 2.0 * math.pi * p.turns * s
