@@ -252,3 +252,43 @@ def test_ray_local_sweep(tmp_path: Path) -> None:
         ray.shutdown()
     assert sorted(r.run for r in result.rows) == [0, 1]
     assert all(r.outcome == "succeeded" for r in result.rows)
+
+
+@pytest.mark.slow
+def test_sigint_stops_the_sweep_and_resume_runs_only_the_rest(tmp_path: Path) -> None:
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    out = tmp_path / "killed"
+    vary = "hold_time=uniform(400 ms, 400 ms)"
+    cmd = [sys.executable, "-m", "suture_engine.cli", "sweep", str(STEPS), "--runs", "3"]
+    cmd += ["--vary", vary, "--out", str(out), "--max-time", "5"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    results = out / "results.csv"
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and proc.poll() is None:
+        if results.is_file() and len(results.read_text(encoding="utf-8").splitlines()) >= 2:
+            break
+        time.sleep(0.05)
+    assert proc.poll() is None, "the sweep ended before it could be interrupted"
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 1, err
+    assert "run again to resume" in err
+    assert "Traceback" not in err
+    rows = _read_csv(results)
+    finished = sorted(int(r["run"]) for r in rows)
+    assert 1 <= len(finished) < 3
+    assert all(r["outcome"] == "succeeded" for r in rows)  # the interrupted run is not a row
+    asked: list[int] = []
+
+    def runner(jobs: Sequence[RunJob]) -> Iterator[RunRow]:
+        for job in jobs:
+            asked.append(job.run)
+            yield run_job(job)
+
+    result = run_sweep(_config(3, vary=[vary]), out, runner=runner)
+    assert sorted(asked) == sorted(set(range(3)) - set(finished))
+    assert sorted(r.run for r in result.rows) == [0, 1, 2]

@@ -350,7 +350,11 @@ def make_jobs(config: SweepConfig, out_dir: Path) -> list[RunJob]:
 
 
 def run_job(job: RunJob) -> RunRow:
-    """Run one job (in a worker process); a typed engine error becomes an ``error`` row."""
+    """Run one job (in a worker process); a typed engine error becomes an ``error`` row.
+
+    Raises:
+        KeyboardInterrupt: the run was interrupted (Ctrl-C); it is not a result.
+    """
     import contextlib
     import io
     import time
@@ -371,6 +375,9 @@ def run_job(job: RunJob) -> RunRow:
             0.0, time.perf_counter() - start, 0, 0, f"{exc.code}: {exc.message}",
         )  # fmt: skip
     s = result.summary
+    if str(s.metrics.get("stopped", "")).startswith("interrupted"):
+        # Ctrl-C reached the run: it did not finish, so it must not count as done.
+        raise KeyboardInterrupt
     knot = s.knot.get("type", "") if isinstance(s.knot, Mapping) else ""
     return RunRow(
         job.run, job.seed, dict(job.values), "", s.outcome, s.final_state, str(knot or ""),
