@@ -10,7 +10,14 @@ from __future__ import annotations
 import math
 from typing import Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import (
+    BaseModel,
+    ConfigDict,
+    Field,
+    ValidationInfo,
+    field_validator,
+    model_validator,
+)
 
 from suture_engine.language.units import Angle, Damping, Duration, Force, Length, Mass, Position
 from suture_engine.language.units import Stiffness as StiffnessUnit
@@ -165,15 +172,20 @@ class Tissue(_Model):
         pairs = zip(point, self.wound.start, self.normal, strict=True)
         return sum((p - s) * n for p, s, n in pairs)
 
-    @model_validator(mode="after")
-    def _wound_on_surface(self) -> Tissue:
-        end = self.height(self.wound.end)
+    @field_validator("wound")
+    @classmethod
+    def _wound_on_surface(cls, v: Wound, info: ValidationInfo) -> Wound:
+        normal = info.data.get("normal")
+        if normal is None:  # the normal itself is wrong: reported on its own
+            return v
+        pairs = zip(v.end, v.start, normal, strict=True)
+        end = sum((p - s) * n for p, s, n in pairs)
         if abs(end) > ON_SURFACE_TOLERANCE:
             raise ValueError(
                 f"the wound's end is {end * 1e3:.3g} mm off the tissue surface "
                 "(the plane through its start with the tissue normal)"
             )
-        return self
+        return v
 
 
 class Suture(_Model):

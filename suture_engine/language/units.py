@@ -219,7 +219,10 @@ def parse_quantity(text: str) -> Quantity:
     if match is None:
         raise UnitError(f"expected a quantity such as '20 mm', found {text!r}", text=text)
     factor, dim = parse_unit(match.group(2))
-    return Quantity(float(match.group(1)) * factor, dim)
+    value = float(match.group(1)) * factor
+    if not math.isfinite(value):
+        raise UnitError(f"expected a finite quantity, found {text!r}", text=text)
+    return Quantity(value, dim)
 
 
 @dataclass(frozen=True)
@@ -256,7 +259,13 @@ class Unit:
         from pydantic_core import PydanticCustomError
 
         if isinstance(value, str) and _NUMBER_ONLY.match(value):
-            return float(value)  # YAML 1.1 reads 1e5 as text; a bare number is SI
+            value = float(value)  # YAML 1.1 reads 1e5 as text; a bare number is SI
+        if isinstance(value, float) and not math.isfinite(value):
+            raise PydanticCustomError(
+                "finite_number", "expected a finite number, found {value}", {"value": value}
+            )
+        if isinstance(value, float):
+            return value
         if isinstance(value, str):
             try:
                 value = parse_quantity(value)
@@ -272,6 +281,10 @@ class Unit:
                         "unit": self.unit,
                         "found": dimension_name(value.dim),
                     },
+                )
+            if not math.isfinite(value.value):
+                raise PydanticCustomError(
+                    "finite_number", "expected a finite number, found {value}", {"value": value}
                 )
             return value.value
         return value

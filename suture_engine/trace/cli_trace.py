@@ -6,7 +6,7 @@ readable form). ``suture diff EXPECTED ACTUAL`` compares two traces with the
 default golden tolerances (:data:`~suture_engine.trace.golden.DEFAULT_TOLERANCES`)
 and prints the first divergence.
 
-Exit codes: 0 readable / matching, 1 diverging, corrupt or foreign, 2 I/O error.
+Exit codes: 0 readable / matching, 1 diverging, corrupt, foreign or empty, 2 I/O error.
 """
 
 from __future__ import annotations
@@ -35,7 +35,8 @@ def trace_command(path: Path, *, as_json: bool = False) -> int:
         as_json: print one JSON object instead of text.
 
     Returns:
-        The exit code: 0 readable (complete or truncated), 1 corrupt or foreign, 2 I/O error.
+        The exit code: 0 readable (complete, or truncated after at least one message),
+        1 corrupt, foreign or without a complete message, 2 I/O error.
     """
     from suture_engine.trace.errors import TraceError
     from suture_engine.trace.reader import TraceReader
@@ -63,7 +64,7 @@ def trace_command(path: Path, *, as_json: bool = False) -> int:
             "channels": channels,
         }
         print(json.dumps(report, indent=2, sort_keys=True))
-        return 0
+        return 1 if not s.complete and s.message_count == 0 else 0
     end = "—" if s.last_time_ns is None else f"{s.last_time_ns / 1e9:.3f} s"
     state = "complete" if s.complete else f"TRUNCATED ({s.reason}) at byte {s.stop_offset}"
     print(f"{path}: {state}")
@@ -74,6 +75,9 @@ def trace_command(path: Path, *, as_json: bool = False) -> int:
     width = max((len(c["topic"]) for c in channels), default=0)
     for c in channels:
         print(f"  {c['topic']:<{width}}  {c['messages']:>9}  {c['schema']}")
+    if not s.complete and s.message_count == 0:
+        print(f"error: {path}: holds no complete message ({s.reason})", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -90,10 +94,18 @@ def diff_command(expected: Path, actual: Path, *, topics: Sequence[str] | None =
     """
     from suture_engine.trace.errors import TraceError
     from suture_engine.trace.golden import compare
+    from suture_engine.trace.reader import TraceReader
 
     try:
         result = compare(expected, actual, topics=list(topics) if topics else None)
     except TraceError as exc:
         return _fail(exc)
+    for path in (expected, actual):  # a divergence at a trace's end: say which one stops
+        status = TraceReader(path).status
+        if not status.complete:
+            print(
+                f"note: {path}: TRUNCATED ({status.reason}) at byte {status.stop_offset}, "
+                f"after {status.message_count} messages"
+            )
     print(result.text)
     return 0 if result.ok else 1
