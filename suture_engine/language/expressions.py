@@ -21,6 +21,7 @@ import ast
 import math
 import operator
 import re
+import warnings
 from collections.abc import Callable, Mapping
 from typing import Any
 
@@ -100,7 +101,10 @@ def _val(x: Any, expr: str) -> float:
         return x.value
     if isinstance(x, bool) or not isinstance(x, (int, float)):
         raise ExpressionError(f"expected a number, found {type(x).__name__} {x!r}", expr)
-    return float(x)
+    try:
+        return float(x)
+    except OverflowError:  # an integer literal beyond the float range
+        raise ExpressionError("numeric overflow", expr) from None
 
 
 def _wrap(value: float, dim: Dimension) -> Any:
@@ -141,11 +145,16 @@ def _arith(op: ast.operator, a: Any, b: Any, expr: str) -> Any:
                 raise ExpressionError("exponent too large", expr)
             da = _dim(a)
             n = int(y) if _dim(a) != _DIMLESS else 0
-            return _wrap(x**y, (da[0] * n, da[1] * n, da[2] * n, da[3] * n))
+            power = x**y
+            if isinstance(power, complex):
+                raise ExpressionError("a negative number to a fractional power", expr)
+            return _wrap(power, (da[0] * n, da[1] * n, da[2] * n, da[3] * n))
     except ZeroDivisionError:
         raise ExpressionError("division by zero", expr) from None
     except OverflowError:
         raise ExpressionError("numeric overflow", expr) from None
+    except ValueError as exc:  # math.fmod(x, 0)
+        raise ExpressionError(f"invalid operation ({exc})", expr) from None
     raise ExpressionError(f"operator {type(op).__name__} is not allowed", expr)
 
 
@@ -270,14 +279,61 @@ def evaluate(expression: str, names: Mapping[str, Any]) -> Any:
         raise ExpressionError(f"longer than {MAX_EXPRESSION_CHARS} characters", expression[:40])
     text, literals = _substitute_quantities(expression)
     try:
-        tree = ast.parse(text.strip(), mode="eval")
-    except (SyntaxError, ValueError) as exc:
+        with warnings.catch_warnings():  # "invalid decimal literal" and the like: not ours
+            warnings.simplefilter("ignore", SyntaxWarning)
+            tree = ast.parse(text.strip(), mode="eval")
+    except (SyntaxError, ValueError, MemoryError) as exc:
         raise ExpressionError(f"syntax error: {getattr(exc, 'msg', exc)}", expression) from None
     scope = {**names, **literals}
     try:
-        return _Evaluator(expression, scope).visit(tree.body)
+        _check_static(tree, text.strip(), expression)
+        value = _Evaluator(expression, scope).visit(tree.body)
     except RecursionError:
         raise ExpressionError("expression nested too deeply", expression) from None
+    if isinstance(value, int) and not isinstance(value, bool):
+        _val(value, expression)  # an integer beyond the float range: numeric overflow
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ExpressionError(f"the result is not a finite number ({value})", expression)
+    if isinstance(value, Quantity) and not math.isfinite(value.value):
+        raise ExpressionError(f"the result is not a finite number ({value.value})", expression)
+    return value
+
+
+_ALLOWED_NODES: tuple[type[ast.AST], ...] = (
+    ast.Expression, ast.Constant, ast.Name, ast.Load, ast.Attribute, ast.UnaryOp, ast.BinOp,
+    ast.BoolOp, ast.Compare, ast.IfExp, ast.Call, ast.operator, ast.unaryop, ast.boolop,
+    ast.cmpop,
+)  # fmt: skip
+
+
+def _check_static(tree: ast.AST, text: str, expr: str) -> None:
+    """Reject forbidden constructs anywhere in the tree, before anything is evaluated
+    (also in the branch of ``x if c else y`` that would not be taken)."""
+    for node in ast.walk(tree):
+        if not isinstance(node, _ALLOWED_NODES):
+            raise ExpressionError(f"{type(node).__name__} is not allowed", expr)
+        if isinstance(node, ast.Name | ast.Attribute):
+            name = node.id if isinstance(node, ast.Name) else node.attr
+            if name.startswith("_") and not (isinstance(node, ast.Name) and name.startswith("_q")):
+                raise ExpressionError(f"name {name!r} is not allowed", expr)
+            if not name.isascii() or not _written_as(node, name, text):
+                raise ExpressionError(
+                    f"identifier {name!r} is written with look-alike (non-ASCII) characters",
+                    expr,
+                )
+        if isinstance(node, ast.Call) and (
+            not isinstance(node.func, ast.Name) or node.func.id not in _FUNCTIONS
+        ):
+            allowed = ", ".join(sorted(_FUNCTIONS))
+            raise ExpressionError(f"only these functions may be called: {allowed}", expr)
+
+
+def _written_as(node: ast.Name | ast.Attribute, name: str, text: str) -> bool:
+    """True if the source spells ``name`` as parsed (Python folds look-alike letters, NFKC)."""
+    segment = ast.get_source_segment(text, node)
+    if segment is None:
+        return False
+    return segment.endswith(name) if isinstance(node, ast.Attribute) else segment == name
 
 
 class _Evaluator:
