@@ -82,23 +82,19 @@ def test_empty_channels_give_no_data_panels(tmp_path: Path) -> None:
         assert fig.png.startswith(PNG_MAGIC)
 
 
-def test_plot_command_writes_every_png(known: Path, tmp_path: Path) -> None:
-    out = tmp_path / "figs"
-    stdout, err = io.StringIO(), io.StringIO()
-    assert plot_command(known, out=out, stdout=stdout, err=err) == 0
-    assert sorted(p.name for p in out.iterdir()) == sorted(f"{n}.png" for n in FIGURE_NAMES)
-    assert "no data on /qp/endobot_2" in stdout.getvalue()
-
-
-def test_truncated_trace_is_plotted_up_to_where_it_stops(known: Path, tmp_path: Path) -> None:
+def test_plot_command_on_a_truncated_trace_writes_every_png(known: Path, tmp_path: Path) -> None:
     data = known.read_bytes()
     cut = tmp_path / "trace.mcap"
     cut.write_bytes(data[: int(len(data) * 0.7)])
     loaded = load_trace(cut)
     assert loaded.status.truncated
+    assert 0.0 < loaded.duration_s < 2.0
+    out = tmp_path / "figs"
     stdout = io.StringIO()
-    assert plot_command(cut, out=tmp_path / "f", stdout=stdout, err=io.StringIO()) == 0
+    assert plot_command(cut, out=out, stdout=stdout, err=io.StringIO()) == 0
+    assert sorted(p.name for p in out.iterdir()) == sorted(f"{n}.png" for n in FIGURE_NAMES)
     assert "ends early" in stdout.getvalue()
+    assert "no data on /qp/endobot_2" in stdout.getvalue()
 
 
 @pytest.mark.parametrize(

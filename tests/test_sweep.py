@@ -247,10 +247,10 @@ def test_ray_local_sweep(tmp_path: Path) -> None:
     import ray
 
     try:
-        result = run_sweep(_config(2), tmp_path, ray_address="local")
+        result = run_sweep(_config(1), tmp_path, ray_address="local")
     finally:
         ray.shutdown()
-    assert sorted(r.run for r in result.rows) == [0, 1]
+    assert [r.run for r in result.rows] == [0]
     assert all(r.outcome == "succeeded" for r in result.rows)
 
 
