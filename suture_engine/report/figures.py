@@ -419,7 +419,7 @@ def _tension(data: TraceData) -> RenderedFigure:
         _no_data(ax, " and ".join(missing))
     else:
         if isinstance(limit, int | float):
-            ax.axhline(float(limit), color="red", ls="--", lw=1.2, label=f"limit {limit:g} N")
+            ax.axhline(float(limit), color="red", ls="--", lw=1.2, label=f"limit {limit:.3g} N")
         else:
             ax.text(
                 0.99,
