@@ -90,6 +90,7 @@ class Interpreter:
         progress: called every 100 ticks with (t [s], max_time_s [s]).
         washout_pole: pole of the washout velocity filter [rad/s] (5.50).
         manual_invariant: the Manual mode invariant (4.45), e.g. the joint limits.
+        on_tick: called after every recorded tick with the interpreter (live panel, video).
     """
 
     def __init__(
@@ -110,6 +111,7 @@ class Interpreter:
         progress: Callable[[float, float], None] | None = None,
         washout_pole: float = 150.0,
         manual_invariant: Invariant | None = None,
+        on_tick: Callable[[Interpreter], None] | None = None,
     ) -> None:
         from suture_engine.control.filters import WashoutFilter
 
@@ -128,6 +130,7 @@ class Interpreter:
         self.tension_limit_N = tension_limit_N
         self.progress = progress
         self.manual_invariant = manual_invariant
+        self.on_tick = on_tick
         self.robots = tuple(first.robots)
         self.geometry: SceneGeometry = backend.geometry()
         self._washout = {r: WashoutFilter(washout_pole, self.dt) for r in self.robots}
@@ -392,6 +395,8 @@ class Interpreter:
         self.monitor.max_tension_N = max(self.monitor.max_tension_N, *tension.values())
         truth = self.backend.ground_truth()
         self.recorder.tick(time_ns, obs, torques, modes, tension, truth)
+        if self.on_tick is not None:
+            self.on_tick(self)
         if a.finished:
             self.stop_reason = a.state
             return False

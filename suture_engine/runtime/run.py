@@ -209,6 +209,7 @@ def run_procedure(
     max_time_s: float = 300.0,
     progress: Callable[[float, float], None] | None = None,
     backend_options: dict[str, Any] | None = None,
+    on_tick: Callable[[Any], None] | None = None,
 ) -> RunResult:
     """Run a procedure file; write ``trace.mcap`` and ``summary.json``.
 
@@ -224,6 +225,7 @@ def run_procedure(
         max_time_s: simulated time after which the run stops as failed [s].
         progress: called with (t [s], max_time_s [s]) during the run.
         backend_options: extra keyword options for the backend's constructor.
+        on_tick: called after every tick with the interpreter (live panel, video).
 
     Raises:
         ProcedureLoadError, SetOverrideError, OperatorFileError, UnknownBackend.
@@ -290,6 +292,7 @@ def run_procedure(
             tension_limit_N=limit,
             progress=progress,
             manual_invariant=manual_inv,
+            on_tick=on_tick,
         )
         summary = interp.run(proc.name, backend)
     finally:
