@@ -173,6 +173,42 @@ class _Builder:
         raise self.fail("yaml-syntax", "unsupported YAML node", node, path)  # pragma: no cover
 
 
+_PARSE_DEPTH_GUARD = 4 * MAX_DEPTH
+"""Nesting at which the event pre-scan stops a document before it is composed [levels]."""
+
+
+def _check_parse_depth(text: str, file: str) -> None:
+    """Refuse a document nested deeper than :data:`_PARSE_DEPTH_GUARD` before composing it.
+
+    The C composer recurses once per level without Python's recursion limit: a few
+    hundred kilobytes of ``[[[[...`` crash the process. The event stream is flat, so
+    counting its depth is safe. Syntax errors are left for the composer to report.
+    """
+    depth = 0
+    try:
+        for event in yaml.parse(text, Loader=_Loader):
+            if isinstance(event, yaml.SequenceStartEvent | yaml.MappingStartEvent):
+                depth += 1
+                if depth > _PARSE_DEPTH_GUARD:
+                    mark = event.start_mark
+                    line, col = (mark.line + 1, mark.column + 1) if mark else (1, 1)
+                    raise ProblemError(
+                        [
+                            Problem(
+                                "yaml-too-deep",
+                                f"nesting deeper than {MAX_DEPTH} levels",
+                                file,
+                                line,
+                                col,
+                            )
+                        ]
+                    )
+            elif isinstance(event, yaml.SequenceEndEvent | yaml.MappingEndEvent):
+                depth -= 1
+    except yaml.YAMLError:
+        return
+
+
 def load_yaml_text(text: str, file: str) -> YamlDocument:
     """Load one YAML document from text.
 
@@ -189,6 +225,7 @@ def load_yaml_text(text: str, file: str) -> YamlDocument:
         raise ProblemError(
             [Problem("yaml-too-large", f"file larger than {MAX_FILE_BYTES} bytes", file, 1, 1)]
         )
+    _check_parse_depth(text, file)
     try:
         node = yaml.compose(text, Loader=_Loader)
     except yaml.MarkedYAMLError as exc:
