@@ -5,11 +5,19 @@ over it; algorithm 3 moves the needle holder around the bent grasper tip. The
 mirror image of a knot wraps in the opposite direction.
 
 The other tool's shaft is the line from its RCM point O' through its tip T'
-(both known from its encoders and base pose). The carrying tool's tip first
-moves in a straight line to a point at ``radius`` from that shaft, at
-:attr:`Wrap.HEIGHT` up the shaft from T', then goes ``turns`` full circles
-about the shaft: counter-clockwise about the unit vector from T' to O'
-(right-hand rule) for ``front-to-back``, clockwise for ``back-to-front``.
+(both known from its encoders and base pose). The loop lies in the plane
+orthogonal to the shaft at :attr:`Wrap.HEIGHT` up the shaft from T', on a
+circle of ``radius`` about it. "Over" the other tool is the side of the shaft
+facing this robot's RCM point O: there this robot's tool ends before it reaches
+the other shaft, so the tools do not meet, and the suture hanging from the tip
+drapes over the other tool. With e_over the unit vector from the shaft towards
+O (orthogonal to it) and e_side = shaft x e_over, the *front* is +e_side. The
+tip moves to the start of the arc through a waypoint two radii over the
+shaft, then along the arc: ``front-to-back`` from +e_side over e_over to
+-e_side, ``back-to-front`` the other way, through
+pi (2 turns - 1) [rad]: one turn is the half loop over the hook of algorithm 2
+step 2; every further turn also passes the far side of the other shaft, where
+the tools' shafts cross.
 """
 
 from __future__ import annotations
@@ -43,13 +51,14 @@ class WrapParams(SkillParams):
 
 
 class Wrap(Skill):
-    """Carry the suture around the other tool ``turns`` times in ``direction``.
+    """Carry the suture over the other tool in ``direction`` (see the module docstring).
 
     Two phases, each a minimum-jerk path through the inverse kinematics with
-    peak tip speed ``speed``: the approach to the circle, then the loop. The
-    roll is kept. Fails when a path leaves the joint limits, when the carrying
-    robot is the one wrapped around, or when the tip is not back within
-    :attr:`TOLERANCE` [m] of the loop's end :attr:`SETTLE_S` [s] after the path.
+    peak tip speed ``speed``: the approach to the arc's start, then the arc of
+    pi (2 turns - 1) [rad] about the other shaft. The roll is kept. Fails when a
+    path leaves the joint limits, when the carrying robot is the one wrapped
+    around or the shafts are aligned, or when the tip is not within
+    :attr:`TOLERANCE` [m] of the arc's end :attr:`SETTLE_S` [s] after the path.
     """
 
     name: ClassVar[str] = "wrap"
@@ -88,8 +97,17 @@ class Wrap(Skill):
 
         p = self.params
         assert isinstance(p, WrapParams)
-        phi = self.sign * 2.0 * math.pi * p.turns * s
+        phi = self.sign * (0.5 * math.pi - self.sweep * s)
         return self.centre + p.radius * (math.cos(phi) * self._e1 + math.sin(phi) * self._e2)
+
+    @property
+    def sweep(self) -> float:
+        """Angle swept about the other shaft, pi (2 turns - 1) [rad]."""
+        import math
+
+        p = self.params
+        assert isinstance(p, WrapParams)
+        return math.pi * (2 * p.turns - 1)
 
     def start(self, ctx: Any) -> None:
         """Locate the other tool's shaft and plan the approach and the loop.
@@ -97,7 +115,6 @@ class Wrap(Skill):
         Args:
             ctx: the :class:`suture_engine.runtime.context.SkillContext`.
         """
-        import math
 
         import numpy as np
 
@@ -120,23 +137,35 @@ class Wrap(Skill):
         self.axis = axis / np.linalg.norm(axis)
         self.centre = t2 + self.HEIGHT * self.axis
         tip = tip_world(q0, self._base)
-        radial = tip - self.centre
-        radial = radial - (radial @ self.axis) * self.axis
-        if float(np.linalg.norm(radial)) < 1e-9:
-            radial = np.cross(self.axis, (1.0, 0.0, 0.0))
-            if float(np.linalg.norm(radial)) < 1e-9:
-                radial = np.cross(self.axis, (0.0, 1.0, 0.0))
-        self._e1 = radial / np.linalg.norm(radial)
+        own = np.zeros(3) if self._base is None else np.asarray(self._base[0], dtype=float)
+        over = own - self.centre
+        over = over - (over @ self.axis) * self.axis
+        if float(np.linalg.norm(over)) < 1e-9:
+            self._failure = "the two shafts are aligned: no side is over the other tool"
+            over = np.cross(self.axis, (1.0, 0.0, 0.0))
+        self._e1 = over / np.linalg.norm(over)
         self._e2 = np.cross(self.axis, self._e1)
-        a = tip
-        b = self.loop_point(0.0)
+        # approach through a waypoint over the other tool (2 radii towards O), so the
+        # straight legs stay on this robot's side of the other shaft
+        legs = [tip, self.centre + 2.0 * p.radius * self._e1, self.loop_point(0.0)]
+        first = float(np.linalg.norm(legs[1] - legs[0]))
+        total = first + float(np.linalg.norm(legs[2] - legs[1]))
+
+        def approach_point(s: float) -> Any:
+            d = s * total
+            if d <= first and first > 0.0:
+                return legs[0] + d / first * (legs[1] - legs[0])
+            rest = total - first
+            frac = 1.0 if rest <= 0.0 else (d - first) / rest
+            return legs[1] + frac * (legs[2] - legs[1])
+
         approach = ToolPath(
-            lambda s: ik_world(a + s * (b - a), roll, self._base),
-            duration_for(float(np.linalg.norm(b - a)), p.speed),
+            lambda s: ik_world(approach_point(s), roll, self._base),
+            duration_for(total, p.speed),
         )
         loop = ToolPath(
             lambda s: ik_world(self.loop_point(s), roll, self._base),
-            duration_for(2.0 * math.pi * p.radius * p.turns, p.speed),
+            duration_for(self.sweep * p.radius, p.speed),
         )
         self._paths = [approach, loop]
         self._goal = self.loop_point(1.0)
@@ -147,7 +176,7 @@ class Wrap(Skill):
             self._failure = self._failure or path.first_violation(box)
 
     def step(self, ctx: Any, obs: Any) -> Any:
-        """Track the approach then the loop; success back at the loop's start.
+        """Track the approach then the arc; success at the arc's end.
 
         Args:
             ctx: the skill context.

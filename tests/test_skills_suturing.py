@@ -336,8 +336,16 @@ def test_pass_jaws_fails_on_an_unknown_holder(scene: Any, tool: ToolState) -> No
 
 
 # ----------------------------------------------------------------- wrap
+def segment_distance(p0: Any, p1: Any, q0: Any, q1: Any, n: int = 400) -> float:
+    """Distance between two segments, by dense sampling of both."""
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    a = p0 + s * (p1 - p0)
+    b = q0 + s * (q1 - q0)
+    return float(np.min(np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2)))
+
+
 @pytest.mark.parametrize(("direction", "turns"), [("front-to-back", 1), ("back-to-front", 2)])
-def test_wrap_loops_around_the_other_shaft(scene: Any, direction: str, turns: int) -> None:
+def test_wrap_goes_over_the_other_shaft(scene: Any, direction: str, turns: int) -> None:
     qs, tools = start_pose(scene)
     q_other = np.array(qs["endobot_2"])
     skill = Wrap(
@@ -351,6 +359,7 @@ def test_wrap_loops_around_the_other_shaft(scene: Any, direction: str, turns: in
     )
     run = Run(skill, scene, qs, tools, max_t=60.0)
     assert run.status is SkillStatus.SUCCESS, run.message
+    o1 = np.array(scene.robots["endobot_1"].base.position)
     o2 = np.array(scene.robots["endobot_2"].base.position)
     t2 = tip(scene, "endobot_2", q_other)
     axis = (o2 - t2) / np.linalg.norm(o2 - t2)
@@ -360,12 +369,25 @@ def test_wrap_loops_around_the_other_shaft(scene: Any, direction: str, turns: in
     dist = np.linalg.norm(radial, axis=1)
     on_loop = np.abs(dist - 0.008) < 1e-6
     assert on_loop.sum() > 50
-    # winding about the shaft, counted in the plane orthogonal to it
+    # swept angle about the shaft, in the plane orthogonal to it: pi (2 turns - 1)
     e1 = radial[on_loop][0] / dist[on_loop][0]
     e2 = np.cross(axis, e1)
     ang = np.unwrap(np.arctan2(radial[on_loop] @ e2, radial[on_loop] @ e1))
     sign = 1.0 if direction == "front-to-back" else -1.0
-    assert ang[-1] - ang[0] == pytest.approx(sign * 2 * math.pi * turns, abs=0.02)
+    assert ang[-1] - ang[0] == pytest.approx(-sign * math.pi * (2 * turns - 1), abs=0.02)
+    # the arc starts and ends beside the shaft, level with each other
+    assert np.dot(radial[on_loop][0], radial[on_loop][-1]) == pytest.approx(-(0.008**2), abs=1e-8)
+    # over the other tool: the arc's middle is on the side facing this robot's RCM
+    over = (o1 - t2) - ((o1 - t2) @ axis) * axis
+    if turns == 1:
+        middle = radial[on_loop][len(ang) // 2]
+        assert np.dot(middle, over) / (0.008 * np.linalg.norm(over)) > 0.99
+        # and the shafts never meet: the tool segments stay apart all along
+        gaps = [
+            segment_distance(o1, tips[k], o2, t2)
+            for k in range(0, len(tips), max(1, len(tips) // 60))
+        ]
+        assert min(gaps) > 3e-3
     assert in_limits(scene, "endobot_1", run.commanded("endobot_1"))
 
 
