@@ -350,6 +350,14 @@ CASES: list[Case] = [
         ("out",),
         sub=True,
     ),
+    Case(
+        "proc-deep-flow-nesting",
+        ("validate", "p.yaml"),
+        {"p.yaml": PROC + "extra: " + "[" * 200_000 + "]" * 200_000 + "\n"},
+        1,
+        (f"p.yaml:{PROC.count(chr(10)) + 1}:", "yaml-too-deep"),
+        sub=True,
+    ),
     # --- scenes ---
     _scene("scene-usp-unknown", "usp: 3-0", "usp: 12-0", ("usp", "12-0")),
     _scene("scene-usp-number", "usp: 3-0", "usp: 3.5", ("usp",)),
@@ -474,6 +482,7 @@ CASES: list[Case] = [
         "events: !!python/object/apply:os.system ['touch pwned']\n",
         ("o.yaml:1:",),
     ),
+    _ops("ops-deep-nesting", "events: " + "[" * 3000 + "]" * 3000 + "\n", ("o.yaml:1:",)),
     Case(
         "ops-missing",
         ("run", "steps.yaml", "--operator", "nope.yaml", "--out", "out"),
@@ -624,6 +633,10 @@ XFAIL: dict[str, str] = {
     "set-run-hold_time=[1 s": (
         "a --set value that is not valid YAML escapes as a yaml ParserError traceback "
         "(runtime/run.py _with_overrides: yaml.safe_load(value) unguarded)"
+    ),
+    "ops-deep-nesting": (
+        "a deeply nested operator file escapes as a RecursionError traceback "
+        "(runtime/operator.py load_operator_file catches yaml.YAMLError only)"
     ),
     "run-max-time-negative": (
         "--max-time -1 is accepted: the run starts, fails at once and writes summary.json "
