@@ -41,6 +41,7 @@ def sweep_command(
         VarySpecError,
         make_jobs,
         parse_vary,
+        read_results,
         run_sweep,
     )
     from suture_engine.runtime.run import ProcedureLoadError, SetOverrideError, load_plan
@@ -102,7 +103,11 @@ def sweep_command(
         TimeElapsedColumn(),
         console=console,
     )
-    task = progress.add_task("sweep", total=runs, last="")
+    try:
+        already = sum(1 for i in read_results(out / "results.csv", specs) if i < runs)
+    except (SweepError, OSError, ValueError, KeyError):
+        already = 0  # run_sweep reports a foreign results.csv
+    task = progress.add_task("sweep", total=runs, completed=already, last="")
 
     def on_row(row: object) -> None:
         progress.update(

@@ -544,20 +544,26 @@ def summarise(rows: Sequence[RunRow], confidence: float = 0.95) -> dict[str, Any
     }
 
 
-def _plot(rows: Sequence[RunRow], summary: Mapping[str, Any], path: Path) -> None:
+def _plot(
+    rows: Sequence[RunRow], summary: Mapping[str, Any], vary: Sequence[VarySpec], path: Path
+) -> None:
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(10, 3.8), dpi=100, layout="constrained")
+    fig = Figure(figsize=(14, 3.8), dpi=100, layout="constrained")
     FigureCanvasAgg(fig)
-    ax_rate, ax_t = fig.subplots(1, 2)
+    ax_rate, ax_t, ax_v = fig.subplots(1, 3)
     names = list(summary["conditions"])
     rates = [summary["conditions"][c]["success_rate"] for c in names]
     lows = [r - summary["conditions"][c]["wilson_low"] for r, c in zip(rates, names, strict=True)]
     highs = [summary["conditions"][c]["wilson_high"] - r for r, c in zip(rates, names, strict=True)]
     ax_rate.bar(range(len(names)), rates, yerr=[lows, highs], capsize=5, color="#1f77b4")
     ax_rate.set_xticks(range(len(names)), names, rotation=20, ha="right", fontsize=8)
-    ax_rate.set_ylim(0, 1.05)
+    for i, c in enumerate(names):
+        k, n = summary["conditions"][c]["succeeded"], summary["conditions"][c]["runs"]
+        ax_rate.annotate(f"{k}/{n}", (i, rates[i]), ha="center", va="bottom", fontsize=8,
+                         xytext=(0, 3), textcoords="offset points")  # fmt: skip
+    ax_rate.set_ylim(0, 1.1)
     ax_rate.set_ylabel("success rate")
     ax_rate.set_title(f"Success rate, {summary['confidence']:.0%} Wilson interval")
     tensions = [r.max_tension_N for r in rows if math.isfinite(r.max_tension_N)]
@@ -568,6 +574,26 @@ def _plot(rows: Sequence[RunRow], summary: Mapping[str, Any], path: Path) -> Non
     else:
         ax_t.text(0.5, 0.5, "no tension data", ha="center", va="center", transform=ax_t.transAxes)
     ax_t.set_title("Largest estimated tension per run")
+    numeric = next((v for v in vary if v.kind != "choice"), None)
+    if numeric is None:
+        ax_v.text(0.5, 0.5, "no numeric --vary", ha="center", va="center", transform=ax_v.transAxes)
+    else:
+        for outcome, colour in (("succeeded", "#2ca02c"), ("failed", "#d62728"),
+                                ("aborted", "#ff7f0e"), ("error", "#7f7f7f")):  # fmt: skip
+            pts = [
+                (float(r.values[numeric.name].split()[0]), r.max_tension_N)
+                for r in rows
+                if r.outcome == outcome
+            ]
+            if pts:
+                xs, ys = zip(*pts, strict=True)
+                ax_v.plot(xs, [0.0 if math.isnan(y) else y for y in ys], "o", color=colour,
+                          ms=4, ls="", label=f"{outcome} ({len(pts)})")  # fmt: skip
+        ax_v.set_xlabel(f"{numeric.name}" + (f" [{numeric.unit}]" if numeric.unit else ""))
+        ax_v.set_ylabel("max tension [N]")
+        ax_v.legend(fontsize=8)
+        ax_v.grid(True, alpha=0.3)
+    ax_v.set_title("Outcome against the varied value")
     fd, tmp = tempfile.mkstemp(prefix=".sweep-", suffix=".png", dir=path.parent)
     os.close(fd)
     try:
@@ -702,5 +728,5 @@ def run_sweep(
     summary = summarise(rows)
     files = {"results": results_csv, "summary": out / "summary.json", "plot": out / "sweep.png"}
     _write_json(files["summary"], summary)
-    _plot(rows, summary, files["plot"])
+    _plot(rows, summary, config.vary, files["plot"])
     return SweepResult(rows, ran, summary, out, files)
