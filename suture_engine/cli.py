@@ -51,6 +51,13 @@ def run(
     trace: Annotated[
         Path | None, typer.Option(help="With --backend replay: the recorded trace to serve.")
     ] = None,
+    video: Annotated[
+        Path | None,
+        typer.Option(help="Write a GIF of the run (a relative FILE.gif goes in the output dir)."),
+    ] = None,
+    video_interval: Annotated[
+        float, typer.Option(help="With --video: simulated seconds between frames.")
+    ] = 0.1,
 ) -> None:
     """Run a procedure; write DIR/trace.mcap and DIR/summary.json."""
     from suture_engine.runtime.cli_run import run_command
@@ -67,6 +74,8 @@ def run(
             gui=gui,
             max_time=max_time,
             replay_trace=trace,
+            video=video,
+            video_interval=video_interval,
         )
     )
 

@@ -8,8 +8,9 @@ Typed errors are printed as one located message, never as a traceback.
 from __future__ import annotations
 
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
+from typing import Any, cast
 
 __all__ = ["replay_command", "run_command"]
 
@@ -63,6 +64,8 @@ def run_command(
     gui: bool,
     max_time: float,
     replay_trace: Path | None = None,
+    video: Path | None = None,
+    video_interval: float = 0.1,
 ) -> int:
     """``suture run``: returns the exit code."""
     from backends.registry import UnknownBackend
@@ -79,9 +82,12 @@ def run_command(
             _error("--backend replay needs --trace TRACE (the recording to serve)")
             return 2
         options["trace"] = replay_trace
+    hooks, panel, capture = _live_hooks(file, backend, interactive, gui, video, video_interval)
+    if hooks is None:
+        return 2
     progress_cb = None
     progress_ctx = None
-    if sys.stdout.isatty():
+    if sys.stdout.isatty() and panel is None:
         from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
         progress_ctx = Progress(
@@ -111,6 +117,7 @@ def run_command(
             max_time_s=max_time,
             progress=progress_cb,
             backend_options=options,
+            on_tick=_chain(hooks),
         )
     except ProcedureLoadError as exc:
         for problem in exc.problems:
@@ -128,8 +135,67 @@ def run_command(
     finally:
         if progress_ctx is not None:
             progress_ctx.stop()
+        if panel is not None:
+            panel.stop()
     _print_summary(result.summary, result.out_dir)
+    if capture is not None and video is not None:
+        from suture_engine.runtime.video import video_path
+
+        try:
+            written = capture.write(video_path(video, result.out_dir))
+        except SutureError as exc:
+            _error(f"{exc.code}: {exc.message}")
+            return 2
+        print(f"video: {written.path} ({written.frames} frames, every {written.interval_s:g} s)")
     return 0 if result.summary.outcome == "succeeded" else 1
+
+
+def _live_hooks(
+    file: Path,
+    backend: str,
+    interactive: bool,
+    gui: bool,
+    video: Path | None,
+    interval: float,
+) -> tuple[list[Any] | None, Any, Any]:
+    """The per-tick hooks of ``--interactive`` and ``--video`` (None hooks: a usage error)."""
+    hooks: list[Any] = []
+    panel = capture = None
+    if video is not None:
+        from suture_engine.runtime.video import VideoCapture, VideoError
+
+        if video.suffix.lower() != ".gif":
+            _error(f"--video {video}: the video is written as a GIF; name it FILE.gif")
+            return None, None, None
+        if backend != "pybullet":
+            _error(f"--video needs --backend pybullet (the {backend} backend renders no frames)")
+            return None, None, None
+        try:
+            capture = VideoCapture(interval_s=interval)
+        except VideoError as exc:
+            _error(exc.message)
+            return None, None, None
+        hooks.append(capture)
+    if interactive:
+        from suture_engine.runtime.live import LivePanel
+
+        panel = LivePanel(file.stem, gui=gui)
+        hooks.append(panel)
+        panel.start()
+    return hooks, panel, capture
+
+
+def _chain(hooks: list[Any]) -> Callable[[Any], None] | None:
+    if not hooks:
+        return None
+    if len(hooks) == 1:
+        return cast(Callable[[Any], None], hooks[0])
+
+    def call_all(interp: Any) -> None:
+        for hook in hooks:
+            hook(interp)
+
+    return call_all
 
 
 def replay_command(
