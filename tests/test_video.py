@@ -22,11 +22,12 @@ SUTURE = [sys.executable, "-c", "from suture_engine.cli import main; main()"]
 def _gif_frames(path: Path) -> tuple[int, int]:
     """(frames stored, total duration [ms]) of a GIF, read back by Pillow."""
     with Image.open(path) as im:
+        n = int(getattr(im, "n_frames", 1))
         total = 0
-        for i in range(im.n_frames):
+        for i in range(n):
             im.seek(i)
             total += int(im.info["duration"])
-        return im.n_frames, total
+        return n, total
 
 
 @pytest.fixture()
