@@ -27,6 +27,7 @@ from suture_engine.runtime.observation import (
     RobotMeasurement,
     SceneGeometry,
     ToolState,
+    scene_geometry,
 )
 from suture_engine.runtime.operator import OperatorEvent
 
@@ -93,7 +94,8 @@ class ReplayBackend:
         self.last_tick = self._last_complete_tick()
         self.tick = 0
         self.last_applied: Command | None = None
-        self._tool = ToolState()
+        self._tools: dict[str, ToolState] = {r: ToolState() for r in self.robots}
+        self._geometry = SceneGeometry()
 
     def _last_complete_tick(self) -> int:
         """The last tick with positions and wrenches of every robot, consecutive from 0."""
@@ -113,9 +115,15 @@ class ReplayBackend:
         Raises:
             EndOfRecording: the recording holds no complete tick.
         """
-        del scene, seed
+        del seed
         self.tick = 0
         self.last_applied = None
+        self._geometry = scene_geometry(scene)
+        robots = getattr(scene, "robots", None) or {}
+        self._tools = {
+            r: ToolState(kind=str(robots[r].tool)) if r in robots else ToolState()
+            for r in self.robots
+        }
         return self.observe()
 
     def observe(self) -> Measurement:
@@ -130,7 +138,7 @@ class ReplayBackend:
             r: RobotMeasurement(
                 np.array(self._q[r][self.tick], dtype=np.float64),
                 np.array(self._w[r][self.tick], dtype=np.float64),
-                self._tool,
+                self._tools.get(r, ToolState()),
             )
             for r in self.robots
         }
@@ -157,8 +165,8 @@ class ReplayBackend:
         self.tick += 1
 
     def geometry(self) -> SceneGeometry:
-        """A default geometry (skills take the declared geometry from the scene model)."""
-        return SceneGeometry()
+        """The geometry the scene given to :meth:`reset` declares (as the live backend)."""
+        return self._geometry
 
     def ground_truth(self) -> Mapping[str, Any]:
         """None: a recording replays no physics."""

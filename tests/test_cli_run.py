@@ -116,6 +116,29 @@ def test_same_seed_gives_a_byte_identical_trace(tmp_path: Path) -> None:
     assert other.trace.read_bytes() != traces[0]  # the operator's pull changed the run
 
 
+def test_same_seed_gives_a_byte_identical_trace_with_move_constrained(tmp_path: Path) -> None:
+    # The OSQP solve adapts rho on an iteration count, never on the clock.
+    traces = [
+        run_procedure(PROCS / "constrained.yaml", backend="pybullet", seed=3, out=tmp_path / n)
+        for n in ("a", "b")
+    ]
+    assert [r.summary.outcome for r in traces] == ["succeeded", "succeeded"]
+    data = [r.trace.read_bytes() for r in traces]
+    assert data[0] == data[1]
+    from suture_engine.trace.reader import TraceReader
+
+    qp = [m.data for m in TraceReader(traces[0].trace).messages(["/qp/endobot_1"])]
+    assert len(qp) > 1000 and all(d["status"] == "solved" for d in qp)
+    assert "solve_time_us" not in qp[0]  # wall clock is not in the trace
+
+
+def test_changing_a_move_constrained_parameter_fails_its_golden_check() -> None:
+    res = _suture("replay", "tests/golden/constrained.mcap", "--check", "--set", "depth=12 mm")
+    assert res.returncode == 1
+    assert "check failed" in res.stdout and "first at tick" in res.stdout
+    assert "Traceback" not in res.stderr
+
+
 @pytest.mark.parametrize("golden", sorted(p.name for p in GOLDEN.glob("*.mcap")))
 def test_golden_traces_replay_and_check(golden: str) -> None:
     path = GOLDEN / golden

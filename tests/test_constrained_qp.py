@@ -181,6 +181,42 @@ def test_failure_holds_last_command_and_counts() -> None:
     assert qp.consecutive_failures == 0 and qp.failures == 2
 
 
+def test_time_limit_guard_is_counted_and_holds_the_command() -> None:
+    qp = ConstrainedQP([Line(direction=[1.0, 1.0, 2.0])], settings=NO_CAP)
+    q = endobot.inverse_kinematics(0.1 * np.array([1, 1, 2]) / np.sqrt(6), 0.0)
+    x, J = _pose(q)
+    good = qp.solve(q, x, J, v_target=np.array([0.01, 0.01, 0.02, 0.1]))
+    assert good.solved and qp.time_limit_hits == 0
+    qp.update_settings(time_limit=1e-12)
+    bad = qp.solve(q, x, J, v_target=np.array([-0.03, -0.03, -0.06, -0.5]))
+    assert not bad.solved and bad.status == "run time limit reached"
+    np.testing.assert_array_equal(bad.qdot, good.qdot)
+    assert qp.time_limit_hits == 1 and qp.failures == 1
+
+
+def _closed_loop(qp: ConstrainedQP, ticks: int) -> list[bytes]:
+    q = endobot.inverse_kinematics(0.1 * np.array([1, 1, 2]) / np.sqrt(6), 0.0)
+    target = np.r_[0.15 * np.array([1, 1, 2]) / np.sqrt(6), 0.5]
+    out = []
+    for _ in range(ticks):
+        x, J = _pose(q)
+        res = qp.solve(q, x, J, x_target=target, exit_point=EXIT, extension_rate_max=0.05)
+        out.append(res.qdot.tobytes() + str((res.iterations, res.status, res.active)).encode())
+        q = q + 1e-3 * res.qdot
+    return out
+
+
+def test_same_inputs_give_bit_identical_commands_and_iterations() -> None:
+    # Rho adaptation on a fixed iteration interval: nothing depends on the wall clock.
+    a = ConstrainedQP([Line(direction=[1.0, 1.0, 2.0])], extension_rate=True)
+    first = _closed_loop(a, 400)
+    b = ConstrainedQP([Line(direction=[1.0, 1.0, 2.0])], extension_rate=True)
+    second = _closed_loop(b, 400)
+    assert first == second
+    assert a.failures == 0 and b.failures == 0
+    assert len({its for its in first}) > 1  # the commands do change along the run
+
+
 def test_warm_path_never_sets_up_twice(monkeypatch: pytest.MonkeyPatch) -> None:
     import osqp
 

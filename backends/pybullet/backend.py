@@ -30,6 +30,7 @@ from suture_engine.runtime.observation import (
     RobotMeasurement,
     SceneGeometry,
     ToolState,
+    scene_geometry,
 )
 
 __all__ = ["DEFAULT_BASES", "DEFAULT_Q0", "PyBulletBackend"]
@@ -151,14 +152,7 @@ class PyBulletBackend:
         p.stepSimulation(physicsClientId=self.client)
         for name, sim in self.robots.items():
             sim.reset(self._q0.get(name, DEFAULT_Q0))
-        tissue = getattr(scene, "tissue", None)
-        points = getattr(tissue, "points", None) or {}
-        self._geometry = SceneGeometry(
-            entry_point=np.asarray(points.get("entry", (0.0, 0.0, 0.0)), dtype=float),
-            exit_point=np.asarray(points.get("exit", (0.0, 0.0, 0.0)), dtype=float),
-            tissue_normal=np.asarray(getattr(tissue, "normal", (0.0, 0.0, 1.0)), dtype=float),
-            base_positions=base_positions,
-        )
+        self._geometry = scene_geometry(scene, base_positions)
         return self.observe()
 
     def _ft_model(self, scene: Any) -> Any:

@@ -18,8 +18,11 @@ and ``u_l`` the unit vector from the suture's exit point to the tool tip, so tha
 The problem is set up once (fixed sparsity; every entry that can ever be non-zero is a
 structural non-zero) and each tick only the values of q, l, u, P and A are passed to
 ``update``; OSQP warm-starts from the previous solution. A solve is capped by
-``max_iter`` and ``time_limit``; when it does not end ``solved``, the previous command
-is held and the failure counted (``failures``, ``consecutive_failures``).
+``max_iter``; rho adapts every ``adaptive_rho_interval`` iterations (a fixed count, not
+OSQP's setup-time-based default), so the same inputs give the same numbers on any
+machine. ``time_limit`` (50 ms) is only a guard against a runaway solve; a hit is
+counted in ``time_limit_hits``. When a solve does not end ``solved``, the previous
+command is held and the failure counted (``failures``, ``consecutive_failures``).
 
 Every soft row carries its own slack with a quadratic penalty ``w_s`` (default 1e5):
 when the rows are feasible they hold up to (multiplier / w_s), about 1e-5 in the row's
@@ -223,6 +226,12 @@ class ConstrainedQP:
         extension_rate: add the suture extension-rate row (4.10-4.11).
         settings: OSQP settings overriding the defaults (``max_iter``, ``time_limit`` [s],
             ``eps_abs``...).
+
+    Attributes:
+        solves: solves so far.
+        failures: solves that did not end ``solved`` (the previous command was held).
+        consecutive_failures: failures since the last successful solve.
+        time_limit_hits: failures on the wall-clock guard ``time_limit``.
     """
 
     def __init__(
@@ -243,6 +252,7 @@ class ConstrainedQP:
         self.failures = 0
         self.consecutive_failures = 0
         self.solves = 0
+        self.time_limit_hits = 0
         m_fix = sum(f.rows for f in self.fixtures)
         m_soft = m_fix + (1 if extension_rate else 0)
         self.n = _N + m_soft
@@ -335,9 +345,15 @@ class ConstrainedQP:
             "eps_abs": 1e-5,
             "eps_rel": 1e-5,
             "max_iter": 4000,
-            "time_limit": 2e-3,
+            # A guard only: a normal tick ends on max_iter or convergence, never on the
+            # clock, so the numbers do not depend on the machine's load. An overrun is
+            # counted in ``time_limit_hits`` and the previous command is held.
+            "time_limit": 0.05,
             "check_termination": 10,
             "adaptive_rho": True,
+            # A fixed iteration interval: OSQP's default (0) derives it from the measured
+            # setup time, which makes two runs of the same seed differ.
+            "adaptive_rho_interval": 25,
         }
         defaults.update(settings or {})
         # A row counts as active within twice the solver's absolute tolerance.
@@ -491,6 +507,8 @@ class ConstrainedQP:
         else:
             self.failures += 1
             self.consecutive_failures += 1
+            if status == "run time limit reached":
+                self.time_limit_hits += 1
             slack = float("nan")
             active = ()
         return QPResult(

@@ -42,6 +42,7 @@ __all__ = [
     "StepResult",
     "ToolCommand",
     "ToolState",
+    "scene_geometry",
 ]
 
 N_JOINTS = 4
@@ -122,6 +123,37 @@ class SceneGeometry:
         object.__setattr__(self, "exit_point", _frozen_array(self.exit_point, 3))
         object.__setattr__(self, "tissue_normal", _frozen_array(self.tissue_normal, 3))
         object.__setattr__(self, "base_positions", MappingProxyType(dict(self.base_positions)))
+
+
+def scene_geometry(
+    scene: object,
+    default_bases: Mapping[str, tuple[float, float, float]] | None = None,
+) -> SceneGeometry:
+    """The geometry a scene model declares, the same for every backend.
+
+    Args:
+        scene: the scene model (``robots`` with base poses, ``tissue`` with ``points`` and
+            ``normal``), or None.
+        default_bases: base positions [m] used when the scene declares no robots.
+
+    Returns:
+        The SceneGeometry (points and base positions [m] in the world frame).
+    """
+    robots = getattr(scene, "robots", None)
+    if robots:
+        bases = {
+            str(name): tuple(float(v) for v in spec.base.position) for name, spec in robots.items()
+        }
+    else:
+        bases = {str(k): tuple(float(v) for v in pos) for k, pos in (default_bases or {}).items()}
+    tissue = getattr(scene, "tissue", None)
+    points = getattr(tissue, "points", None) or {}
+    return SceneGeometry(
+        entry_point=np.asarray(points.get("entry", (0.0, 0.0, 0.0)), dtype=float),
+        exit_point=np.asarray(points.get("exit", (0.0, 0.0, 0.0)), dtype=float),
+        tissue_normal=np.asarray(getattr(tissue, "normal", (0.0, 0.0, 1.0)), dtype=float),
+        base_positions=bases,  # type: ignore[arg-type]
+    )
 
 
 @dataclass(frozen=True)

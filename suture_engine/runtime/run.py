@@ -369,7 +369,7 @@ def replay_trace(
         out_path = Path(tmp_dir) / "replay.mcap"
     else:
         out_path = Path(out)
-    first = be.reset()
+    first = be.reset(proc.scene, int(meta.get("seed", 0)))
     recorder = TraceRecorder(
         out_path,
         procedure=proc.name,
