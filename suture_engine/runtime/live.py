@@ -13,8 +13,10 @@ decide, and takes the keys:
   (``getKeyboardEvents``, mapped by :func:`gui_key_actions`), and the state and
   mode are drawn as debug text in the 3-D view.
 
-Operator events reach the interpreter through its operator source, which the panel
-wraps (:class:`TappedOperator`) so that it can list the events it handed over.
+On its first tick the panel wraps the interpreter's operator source
+(:class:`TappedOperator`, which adds the GUI keys) and its recorder
+(:class:`TappedRecorder`, which lists transitions, events and operator events as the
+trace records them).
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ __all__ = [
     "LivePanel",
     "PanelSnapshot",
     "TappedOperator",
+    "TappedRecorder",
     "gui_key_actions",
     "render_panel",
     "tension_bar",
@@ -171,6 +174,42 @@ class TappedOperator:
         return getattr(self.inner, "exhausted", None)
 
 
+class TappedRecorder:
+    """A recorder proxy: everything goes to the wrapped recorder; transitions, events and
+    operator events are also listed, one line each, for the panel.
+
+    Args:
+        inner: the run's recorder.
+        lines: where the lines go (``(time [s], text)``).
+    """
+
+    def __init__(self, inner: Any, lines: deque[str]) -> None:
+        self.inner = inner
+        self.lines = lines
+
+    def transition(self, time_ns: int, record: Any) -> None:
+        """Forward, and list ``source -> dest (event)``."""
+        self.inner.transition(time_ns, record)
+        why = f": {record.reason}" if record.reason else ""
+        self.lines.append(f"{time_ns * 1e-9:8.3f} s  {record.source} -> {record.dest}{why}")
+
+    def event(self, time_ns: int, name: str, kind: str, state: str, detail: str) -> None:
+        """Forward, and list the event."""
+        self.inner.event(time_ns, name, kind, state, detail)
+        self.lines.append(f"{time_ns * 1e-9:8.3f} s  {kind} {name} in {state}: {detail}")
+
+    def operator(self, time_ns: int, event: OperatorEvent, accepted: bool, detail: str) -> None:
+        """Forward, and list the operator event and whether it was accepted."""
+        self.inner.operator(time_ns, event, accepted, detail)
+        verdict = "accepted" if accepted else f"refused: {detail}"
+        self.lines.append(
+            f"{time_ns * 1e-9:8.3f} s  operator {event.action} ({event.source}) {verdict}"
+        )
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.inner, name)
+
+
 class LivePanel:
     """The per-tick hook behind ``--interactive``: snapshot, panel, GUI keys.
 
@@ -198,8 +237,6 @@ class LivePanel:
         self.snapshot = PanelSnapshot(procedure=procedure)
         self.events: deque[str] = deque(maxlen=max_events)
         self.tap: TappedOperator | None = None
-        self._seen = 0
-        self._state = ""
         self._wall0: float | None = None
         self._live: Any = None
         self._text_id = -1
@@ -207,19 +244,14 @@ class LivePanel:
     # ------------------------------------------------------------- the hook
     def __call__(self, interp: Any) -> None:
         """Called after every tick with the interpreter."""
-        if self.tap is None:
-            self.tap = TappedOperator(interp.operator_source)
-            interp.operator_source = self.tap
-            self._wall0 = time.perf_counter()
         t = interp.tick_index * interp.dt
         a = interp.automaton
-        for when, ev in self.tap.handed[self._seen :]:
-            self.events.append(f"{when:8.3f} s  operator {ev.action} ({ev.source})")
-        self._seen = len(self.tap.handed)
-        if a.state != self._state:
-            if self._state:
-                self.events.append(f"{t:8.3f} s  {self._state} -> {a.state}")
-            self._state = a.state
+        if self.tap is None:  # first tick: tap the operator source and the recorder
+            self.tap = TappedOperator(interp.operator_source)
+            interp.operator_source = self.tap
+            interp.recorder = TappedRecorder(interp.recorder, self.events)
+            self.events.append(f"{t:8.3f} s  started in {a.state}")
+            self._wall0 = time.perf_counter()
         if interp.tick_index % self.every and not a.finished:
             return
         self.snapshot = self._snap(interp, t)
