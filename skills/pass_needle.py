@@ -21,13 +21,16 @@ Phases, each a minimum-jerk path through the inverse kinematics (3.14-3.17):
 
 from __future__ import annotations
 
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from pydantic import Field
 
 from skills.base import Skill, SkillParams
 from suture_engine.language.refs import PointRef, RoleRef
 from suture_engine.language.units import Force, Length, Speed
+
+if TYPE_CHECKING:
+    from suture_engine.validation.problem import Problem
 
 __all__ = ["PassNeedle", "PassNeedleParams", "bite_arc"]
 
@@ -124,6 +127,46 @@ class PassNeedle(Skill):
     """Time after a path to reach its goal [s]."""
     JAW_S: ClassVar[float] = 0.5
     """Time for a stitcher jaw to respond [s]."""
+
+    @classmethod
+    def check(cls, params: SkillParams, scene: Any) -> list[Problem]:
+        """f_max above the static drag F_s (4.11) and at most the scene's tension limit.
+
+        Args:
+            params: validated parameters (SI units).
+            scene: the procedure's scene, or None.
+
+        Returns:
+            The problems found, located at ``max_tension``.
+        """
+        from suture_engine.validation.problem import Problem
+
+        assert isinstance(params, PassNeedleParams)
+        f_max = params.max_tension
+        if f_max is None:
+            return []
+        problems = []
+        if f_max <= cls.STATIC_DRAG:
+            problems.append(
+                Problem(
+                    "tension-bound-too-low",
+                    f"max_tension {f_max:g} N is not above the static suture drag "
+                    f"F_s = {cls.STATIC_DRAG:g} N: no pulling speed keeps the tension under it "
+                    "(4.11)",
+                    path="max_tension",
+                )
+            )
+        limit = getattr(scene, "tension_limit", None) if scene is not None else None
+        if limit is not None and f_max > float(limit) + 1e-12:
+            problems.append(
+                Problem(
+                    "tension-above-limit",
+                    f"max_tension {f_max:g} N is above the scene's tension limit "
+                    f"{float(limit):.4g} N",
+                    path="max_tension",
+                )
+            )
+        return problems
 
     def __init__(self, params: SkillParams) -> None:
         super().__init__(params)

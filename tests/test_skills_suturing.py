@@ -602,3 +602,21 @@ def test_grasp_rotate_release_on_pybullet(tmp_path: Path) -> None:
     assert np.ptp(radial) < 0.5e-3 and np.ptp(rel @ axis) < 0.5e-3
     turned = Rotation.from_rotvec(math.radians(60) * axis).as_matrix() @ rel[0]
     assert np.linalg.norm(rel[-1] - turned) < 0.5e-3  # the tip moved ~64 mm
+
+
+def test_pass_needle_check_flags_tension_bounds(scene: Any) -> None:
+    def codes(f_max: float) -> list[str]:
+        params = PassNeedle.Params.model_validate(
+            {
+                "robot": "stitcher",
+                "entry": "entry_2",
+                "exit": "exit_2",
+                "pull_length": 0.03,
+                "max_tension": f_max,
+            }
+        )
+        return [p.code for p in PassNeedle.check(params, scene)]
+
+    assert codes(3.0) == []
+    assert codes(0.1) == ["tension-bound-too-low"]
+    assert codes(scene.tension_limit + 0.5) == ["tension-above-limit"]
