@@ -77,7 +77,8 @@ class TraceData:
         path: the trace file.
         meta: the ``/meta`` message (empty when absent).
         status: how far the trace could be read.
-        series: per topic, the ``(t [s], message)`` pairs in time order.
+        series: per topic, the ``(t [s], message)`` pairs in time order (of
+            ``/ground_truth/suture`` only the last, to bound memory).
         summary: the run's ``summary.json`` beside the trace, if any.
     """
 
@@ -146,7 +147,11 @@ def load_trace(path: str | os.PathLike[str]) -> TraceData:
     for msg in reader.messages():
         if msg.topic == channels.META and not meta and isinstance(msg.data, dict):
             meta = dict(msg.data)
-        series.setdefault(msg.topic, []).append((msg.log_time_ns / 1e9, msg.data))
+        rows = series.setdefault(msg.topic, [])
+        if msg.topic == channels.GROUND_TRUTH_SUTURE and rows:
+            rows[-1] = (msg.log_time_ns / 1e9, msg.data)  # only the last centerline is used
+        else:
+            rows.append((msg.log_time_ns / 1e9, msg.data))
     summary: dict[str, Any] | None = None
     summary_path = Path(path).with_name("summary.json")
     if summary_path.is_file():
