@@ -282,7 +282,9 @@ def sweep(
         list[str] | None,
         typer.Option("--set", help="Fixed override for every run: name=value (repeatable)."),
     ] = None,
-    max_time: Annotated[float, typer.Option(help="Simulated time limit per run [s].")] = 300.0,
+    max_time: Annotated[
+        float, typer.Option(help="Simulated time limit per run, in seconds.")
+    ] = 300.0,
 ) -> None:
     """Run a procedure N times with varied parameters; results.csv, summary, plot."""
     from suture_engine.report.cli_sweep import sweep_command
