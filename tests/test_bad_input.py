@@ -358,6 +358,14 @@ CASES: list[Case] = [
         (f"p.yaml:{PROC.count(chr(10)) + 1}:", "yaml-too-deep"),
         sub=True,
     ),
+    Case(
+        "proc-name-traversal",
+        ("run", "p.yaml"),
+        {"p.yaml": _sub(PROC, "procedure: steps", "procedure: ../../escaped")},
+        1,
+        ("p.yaml:2:", "procedure name", "at procedure"),
+        ("runs", "../escaped-seed0-001"),
+    ),
     # --- scenes ---
     _scene("scene-usp-unknown", "usp: 3-0", "usp: 12-0", ("usp", "12-0")),
     _scene("scene-usp-number", "usp: 3-0", "usp: 3.5", ("usp",)),

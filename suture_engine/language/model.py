@@ -28,15 +28,17 @@ Example::
 
 from __future__ import annotations
 
+import re
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
 
 from suture_engine.language.units import Angle, Duration, Force, Position
 
 __all__ = [
     "MAX_RETRY",
     "OUTCOMES",
+    "PROCEDURE_NAME_PATTERN",
     "FailurePolicy",
     "Invariant",
     "ParamSpec",
@@ -152,11 +154,16 @@ class StateDocument(_Model):
         return self
 
 
+PROCEDURE_NAME_PATTERN = r"^[A-Za-z0-9][A-Za-z0-9_.\-]{0,99}$"
+"""A procedure name: a safe file-name component (no ``/``, no leading ``.``), <= 100 chars."""
+
+
 class ProcedureDocument(_Model):
     """A procedure file."""
 
-    procedure: str
-    """The procedure's name."""
+    procedure: str = Field(json_schema_extra={"pattern": PROCEDURE_NAME_PATTERN})
+    """The procedure's name: letters, digits, ``-``, ``_``, ``.``, starting with a letter or
+    digit (it names run folders, so never a path)."""
     version: str | int | float = "1"
     """The procedure's version."""
     description: str = ""
@@ -174,3 +181,13 @@ class ProcedureDocument(_Model):
     """The first state."""
     states: dict[str, StateDocument]
     """The states by name."""
+
+    @field_validator("procedure")
+    @classmethod
+    def _safe_name(cls, v: str) -> str:
+        if not re.match(PROCEDURE_NAME_PATTERN, v):
+            raise ValueError(
+                "a procedure name is letters, digits, '-', '_' and '.', starting with a letter "
+                "or digit, at most 100 characters (it names run folders)"
+            )
+        return v
