@@ -20,6 +20,12 @@ Two sources, one interface (:meth:`poll` once per tick):
           velocity: [0.01, 0.0, 0.0]   # [m/s], world frame, from the tip's position
           stiffness: 200 N/m
           duration: 1 s
+        - when: state = along-line    # conditional with a delay: 1.5 s after the
+          after: 1.5 s                # first tick the condition holds
+          do: push
+          robot: endobot_1
+          velocity: [0.0, 0.01, 0.0]
+          duration: 1 s
 
   Actions: ``lock``, ``manual``, ``resume`` (optional ``step``), ``abort``,
   ``force``, ``push``. ``lock``/``manual``/``resume`` with ``robot: NAME`` act on
@@ -105,6 +111,7 @@ class _Event(BaseModel):
     velocity: tuple[float, float, float] | None = None
     stiffness: float = Field(default=200.0, gt=0.0)
     duration: float = Field(default=0.0, ge=0.0)
+    after: float = Field(default=0.0, ge=0.0)
 
     @field_validator("stiffness", mode="before")
     @classmethod
@@ -116,7 +123,7 @@ class _Event(BaseModel):
             return float(m.group(1)) * (1000.0 if m.group(2) == "N/mm" else 1.0)
         return v
 
-    @field_validator("at", "duration", mode="before")
+    @field_validator("at", "duration", "after", mode="before")
     @classmethod
     def _time(cls, v: Any) -> Any:
         return None if v is None else _seconds(v)
@@ -146,6 +153,8 @@ class _Event(BaseModel):
             raise ValueError("'velocity' is only for 'do: push'")
         if self.step is not None and self.do != "resume":
             raise ValueError("'step' is only for 'do: resume'")
+        if self.after and self.when is None:
+            raise ValueError("'after' is only for a conditional ('when') event")
         return self
 
 
@@ -259,6 +268,7 @@ class ScriptedOperator:
     def __init__(self, path: str | Path, dt: float = 1e-3) -> None:
         self._events = load_operator_file(path)
         self._fired = [False] * len(self._events)
+        self._since: list[float | None] = [None] * len(self._events)
         self._half = dt / 2.0
 
     def check_steps(self, steps: Sequence[str]) -> None:
@@ -291,6 +301,12 @@ class ScriptedOperator:
                 assert m is not None
                 what, name = m.group(1), m.group(2)
                 hit = (name in (state, step)) if what == "state" else name == mode
+                if hit and spec.after > 0.0:
+                    # Delayed: the clock starts at the first tick the condition holds.
+                    since = self._since[i]
+                    if since is None:
+                        since = self._since[i] = t
+                    hit = t >= since + spec.after - self._half
             if hit:
                 self._fired[i] = True
                 out.append(ev)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 import re
 import tempfile
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -23,10 +23,12 @@ from suture_engine.runtime.summary import RunSummary, write_summary
 
 __all__ = [
     "COMPARED_TOPICS",
+    "OPERATOR_PARAM",
     "ProcedureLoadError",
     "ReplayResult",
     "RunResult",
     "SetOverrideError",
+    "declared_operator_file",
     "load_plan",
     "replay_trace",
     "run_procedure",
@@ -184,6 +186,32 @@ def load_plan(path: str | Path, sets: Sequence[str] = ()) -> tuple[Any, Any]:
     return result.procedure, plan
 
 
+OPERATOR_PARAM = "operator_file"
+"""A ``str`` procedure parameter that names the procedure's own simulated operator."""
+
+
+def declared_operator_file(path: str | Path, params: Mapping[str, Any]) -> Path | None:
+    """The operator file a procedure brings with it, if any.
+
+    A procedure declares its simulated operator (e.g. the chapter 6 experiments' hand,
+    thesis 6.3.4) with a ``str`` parameter ``operator_file``, a path relative to the
+    procedure's folder; ``--operator`` or ``--interactive`` replace it and
+    ``--set operator_file=`` (empty) turns it off.
+
+    Args:
+        path: the procedure file.
+        params: the procedure's resolved parameters.
+
+    Returns:
+        The operator file's path, or None.
+    """
+    value = params.get(OPERATOR_PARAM)
+    if not isinstance(value, str) or not value.strip():
+        return None
+    file = Path(value)
+    return file if file.is_absolute() else Path(path).parent / file
+
+
 def _new_run_dir(root: Path, name: str, seed: int) -> Path:
     root.mkdir(parents=True, exist_ok=True)
     for n in range(1, 100000):
@@ -238,6 +266,8 @@ def run_procedure(
 
     proc, plan = load_plan(path, sets)
     operator: Any = None
+    if operator_file is None and not interactive:
+        operator_file = declared_operator_file(path, proc.params)
     if operator_file is not None:
         operator = ScriptedOperator(operator_file)
         operator.check_steps(list(plan.steps))
