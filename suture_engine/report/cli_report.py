@@ -70,7 +70,7 @@ def plot_command(
                 target.rmdir()
             except OSError:
                 pass
-        _error(err, f"{exc.filename or target}: {exc.strerror}")
+        _error(err, f"{target}: cannot write: {exc.strerror}")
         return 2
     if data.status.truncated:
         stdout.write(f"note: the trace ends early ({data.status.reason})\n")
@@ -101,7 +101,7 @@ def report_command(
     try:
         path = write_report(page, target)
     except OSError as exc:
-        _error(err, f"{exc.filename or target}: {exc.strerror}")
+        _error(err, f"{target}: cannot write: {exc.strerror}")
         return 2
     stdout.write(f"{path}\n")
     return 0
