@@ -269,7 +269,7 @@ def evaluate(expression: str, names: Mapping[str, Any]) -> Any:
             objects for ``params``, ``scene``, ``suture``, ``tissue``.
 
     Returns:
-        A bool, number, string or :class:`~suture_engine.language.units.Quantity`.
+        A bool, number, string, :class:`~suture_engine.language.units.Quantity` or None.
 
     Raises:
         ExpressionError: a syntax error, a forbidden construct, an unknown name,
@@ -290,6 +290,12 @@ def evaluate(expression: str, names: Mapping[str, Any]) -> Any:
         value = _Evaluator(expression, scope).visit(tree.body)
     except RecursionError:
         raise ExpressionError("expression nested too deeply", expression) from None
+    if value is not None and not isinstance(value, bool | int | float | str | Quantity):
+        raise ExpressionError(
+            f"the result is a {type(value).__name__}, not a value (a namespace needs an "
+            "attribute: params.NAME)",
+            expression,
+        )
     if isinstance(value, int) and not isinstance(value, bool):
         _val(value, expression)  # an integer beyond the float range: numeric overflow
     if isinstance(value, float) and not math.isfinite(value):
