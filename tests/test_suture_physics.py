@@ -45,6 +45,13 @@ def _tighten(knot: str, segments: int) -> tuple[object, object, object, float]:
         left, right = _graspers(scene)
         result = pull_ends(scene, left, right, target=2.0, hold=1.0)
         after = _classify(scene.suture.centerline())
+        truth = scene.suture.ground_truth()
+        # Ground truth: the knot is where the thread touches itself, near the classifier's
+        # crossings, and there are such contacts under load.
+        assert truth.knot_position is not None
+        assert any(c.other_segment >= 0 for c in truth.contacts)
+        crossings = np.array([c.point for c in after.crossing_list])
+        assert np.linalg.norm(crossings.mean(axis=0) - truth.knot_position) < 0.01
         span = float(np.linalg.norm(np.diff(scene.suture.centerline()[[0, -1]], axis=0)))
     finally:
         scene.close()
@@ -96,9 +103,13 @@ def test_straight_thread_half_newton_pull_stretch_and_tension() -> None:
         line = scene.suture.centerline()
         tensions = scene.suture.tensions()
         stretch = scene.suture.stretch()
+        scene_truth = scene.suture.ground_truth()
     finally:
         scene.close()
     assert result.reached
+    truth = scene_truth
+    assert np.array_equal(truth.centerline, line) and truth.stretch == stretch
+    assert truth.knot_position is None  # a straight thread touches nothing of its own
     # Geometric oracle: tip-to-tip distance of a taut straight thread vs its rest length.
     span = float(np.linalg.norm(line[-1] - line[0]))
     assert span / 0.3 - 1.0 < 0.05

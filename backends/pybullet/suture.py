@@ -49,6 +49,7 @@ __all__ = [
     "InvalidSutureParams",
     "Suture",
     "SutureContact",
+    "SutureGroundTruth",
     "SutureParams",
     "configure_physics",
     "knotted_path",
@@ -160,6 +161,24 @@ class SutureContact(NamedTuple):
     other_segment: int
     position: tuple[float, float, float]
     normal_force: float
+
+
+class SutureGroundTruth(NamedTuple):
+    """A snapshot of the thread's true state, for traces and evaluation only (never skills).
+
+    Attributes:
+        centerline: (n_segments + 1)×3 joint points, tail to needle [m].
+        tensions: (n_segments - 1) tension at each joint [N].
+        stretch: relative elongation [-].
+        knot_position: centroid of the thread-on-thread contacts [m], or None.
+        contacts: every contact of the thread in the last step.
+    """
+
+    centerline: FloatArray
+    tensions: FloatArray
+    stretch: float
+    knot_position: tuple[float, float, float] | None
+    contacts: tuple[SutureContact, ...]
 
 
 def configure_physics(client: int, rate: float = PHYSICS_RATE) -> None:
@@ -576,6 +595,16 @@ class Suture:
             return None
         m = np.mean(np.array(pts), axis=0)
         return (float(m[0]), float(m[1]), float(m[2]))
+
+    def ground_truth(self) -> SutureGroundTruth:
+        """Everything the trace records about the thread, in one snapshot (ground truth)."""
+        contacts = tuple(self.contacts())
+        selfs = [c.position for c in contacts if c.other_segment >= 0]
+        knot = None
+        if selfs:
+            m = np.mean(np.array(selfs), axis=0)
+            knot = (float(m[0]), float(m[1]), float(m[2]))
+        return SutureGroundTruth(self.centerline(), self.tensions(), self.stretch(), knot, contacts)
 
     def remove(self) -> None:
         """Remove the thread's bodies and constraints from the world."""
