@@ -53,8 +53,9 @@ class WrapParams(SkillParams):
 class Wrap(Skill):
     """Carry the suture over the other tool in ``direction`` (see the module docstring).
 
-    Two phases, each a minimum-jerk path through the inverse kinematics with
-    peak tip speed ``speed``: the approach to the arc's start, then the arc of
+    Two phases, each a minimum-jerk path through the inverse kinematics: the
+    approach to the arc's start (peak tip speed ``speed``, at least
+    :attr:`APPROACH_SPEED`), then at peak tip speed ``speed`` the arc of
     pi (2 turns - 1) [rad] about the other shaft. The roll is kept. Fails when a
     path leaves the joint limits, when the carrying robot is the one wrapped
     around or the shafts are aligned, or when the tip is not within
@@ -72,6 +73,8 @@ class Wrap(Skill):
 
     HEIGHT: ClassVar[float] = 0.01
     """Height of the loop's plane up the other tool's shaft from its tip [m]."""
+    APPROACH_SPEED: ClassVar[float] = 0.02
+    """Smallest peak tip speed of the free-space approach to the arc [m/s]."""
     TOLERANCE: ClassVar[float] = 1e-3
     """Tip position tolerance at the end [m]."""
     SETTLE_S: ClassVar[float] = 1.0
@@ -161,7 +164,7 @@ class Wrap(Skill):
 
         approach = ToolPath(
             lambda s: ik_world(approach_point(s), roll, self._base),
-            duration_for(total, p.speed),
+            duration_for(total, max(p.speed, self.APPROACH_SPEED)),
         )
         loop = ToolPath(
             lambda s: ik_world(self.loop_point(s), roll, self._base),
