@@ -51,6 +51,10 @@ class MoveConstrainedParams(SkillParams):
     """How long the shared-control phase lasts [s]; ``None`` until an event."""
     max_tension: Force | None = Field(default=None, gt=0.0)
     """Suture tension bound held by the extension-rate limit (4.10-4.11) [N]."""
+    shared_space: Literal["task", "joint"] | None = None
+    """Shared-mode law: ``task`` (6.24) or ``joint`` (the diffeomorphism d = [c; f],
+    6.33-6.37; line, circle and plane); ``None`` takes the class default
+    ``SHARED_SPACE``."""
 
 
 class MoveConstrained(Skill):
@@ -292,7 +296,7 @@ class MoveConstrained(Skill):
         t = obs.t - self._t0
         if p.mode == "shared":
             grav = endobot.gravity_vector(ro.q, self._gravity_params)
-            if self.SHARED_SPACE == "joint" and self._fixture.kind == "eq":
+            if self._space() == "joint" and self._fixture.kind == "eq":
                 tau, _ = joint_space_shared_control(
                     self._fixture,
                     ro.q,
@@ -366,8 +370,10 @@ class MoveConstrained(Skill):
             ``max_deviation_m`` and, in shared mode, ``max_force_N``,
             ``constraint_stiffness_N_per_m`` (the smallest row's max|Fc| / max|e| over
             rows that deviated at least ``MIN_DEVIATION``; nan if none did; Fc is the
-            commanded constraint force (6.20), or (6.53) in joint space) and, in task
-            space, ``desired_stiffness_N_per_m``.
+            commanded constraint force (6.20), or (6.53) in joint space), in task
+            space ``desired_stiffness_N_per_m``, and per constraint row i (Tables
+            6.2-6.4) ``row<i>_max_deviation_m``, ``row<i>_max_force_N`` and
+            ``row<i>_stiffness_N_per_m`` (nan below ``MIN_DEVIATION``).
         """
         import numpy as np
 
@@ -384,6 +390,16 @@ class MoveConstrained(Skill):
             out["constraint_stiffness_N_per_m"] = (
                 float(np.nanmin(k)) if np.any(np.isfinite(k)) else float("nan")
             )
-            if self.SHARED_SPACE == "task" or self._fixture.kind != "eq":
+            if self._space() == "task" or self._fixture.kind != "eq":
                 out["desired_stiffness_N_per_m"] = self.STIFFNESS
+            # Tables 6.2-6.4, one row per constraint row: max|e|, max|Fc|, Ke (6.54).
+            for i in range(len(self._peak_e)):
+                out[f"row{i + 1}_max_deviation_m"] = float(self._peak_e[i])
+                out[f"row{i + 1}_max_force_N"] = float(self._peak_f[i])
+                out[f"row{i + 1}_stiffness_N_per_m"] = float(k[i])
         return out
+
+    def _space(self) -> str:
+        p = self.params
+        assert isinstance(p, MoveConstrainedParams)
+        return p.shared_space or self.SHARED_SPACE

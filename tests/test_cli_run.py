@@ -180,3 +180,50 @@ def test_a_killed_run_leaves_a_trace_that_replays(tmp_path: Path) -> None:
     assert "Traceback" not in res.stderr + res.stdout
     assert res.returncode == 0, res.stdout + res.stderr
     assert "ends early" in res.stdout and "check passed" in res.stdout
+
+
+def _shared_metrics(procedure: str, out: Path, *sets: str) -> dict:
+    extra = [a for s in sets for a in ("--set", s)]
+    res = _suture("run", procedure, "--out", str(out), *extra)
+    assert res.returncode == 0, res.stdout + res.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["outcome"] == "succeeded"
+    assert summary["operator_events"] > 0  # the procedure's declared operator pushed
+    return dict(summary["metrics"])
+
+
+def test_shared_control_with_a_declared_operator_meets_the_desired_stiffness(
+    tmp_path: Path,
+) -> None:
+    # One ramped push normal to the line; Kp = 1000 N/m.
+    m = _shared_metrics("tests/procedures/shared-short.yaml", tmp_path / "d")
+    assert m["desired_stiffness_N_per_m"] == 1000.0
+    assert m["max_deviation_m"] > 1e-3  # the push moved the tool off the line
+    assert abs(m["constraint_stiffness_N_per_m"] / 1000.0 - 1.0) < 0.05
+    for row in (1, 2):
+        ratio = m[f"row{row}_max_force_N"] / m[f"row{row}_max_deviation_m"]
+        assert ratio == pytest.approx(m[f"row{row}_stiffness_N_per_m"])
+    # Without the operator nothing pushes: the deviation stays at numerical noise.
+    quiet = run_procedure(
+        PROCS / "shared-short.yaml", sets=["operator_file=", "duration=1.2 s"], out=tmp_path / "q"
+    )
+    assert quiet.summary.operator_events == 0
+    assert quiet.summary.metrics["max_deviation_m"] < 1e-5
+
+
+@pytest.mark.slow
+def test_bundled_shared_control_line_meets_table_6_2(tmp_path: Path) -> None:
+    m = _shared_metrics("procedures/shared-control-line.yaml", tmp_path / "d")
+    desired = m["desired_stiffness_N_per_m"]
+    assert desired == 1000.0
+    assert abs(m["constraint_stiffness_N_per_m"] / desired - 1.0) < 0.05  # thesis: 1003
+    assert m["max_deviation_m"] > 5e-4 and m["max_force_N"] > 0.5
+
+
+@pytest.mark.slow
+def test_bundled_shared_control_circle_reports_table_6_4_rows(tmp_path: Path) -> None:
+    m = _shared_metrics("procedures/shared-control-circle.yaml", tmp_path / "d")
+    for row in (1, 2):
+        e, f = m[f"row{row}_max_deviation_m"], m[f"row{row}_max_force_N"]
+        assert e > 1e-4 and f > 0.1
+        assert m[f"row{row}_stiffness_N_per_m"] == pytest.approx(f / e)

@@ -41,6 +41,45 @@ events:
     assert op.poll(10.0, "autonomous/tighten", "tighten", "autonomous") == []
 
 
+def test_conditional_event_with_after_fires_that_long_after_the_condition(
+    tmp_path: Path,
+) -> None:
+    path = _write(
+        tmp_path,
+        """
+events:
+  - {when: state = push, after: 1.5 s, do: push, robot: endobot_1, velocity: [0, 0.01, 0]}
+  - {when: state = push, do: lock}
+""",
+    )
+    op = ScriptedOperator(path, dt=1e-3)
+    assert op.poll(0.0, "autonomous/a", "a", "autonomous") == []
+    assert op.poll(5.0, "autonomous/a", "a", "autonomous") == []  # not yet in 'push'
+    assert [e.action for e in op.poll(7.0, "autonomous/push", "push", "autonomous")] == ["lock"]
+    assert op.poll(8.4985, "autonomous/push", "push", "autonomous") == []
+    [ev] = op.poll(8.4995, "autonomous/push", "push", "autonomous")  # 7.0 + 1.5 - dt/2
+    assert ev.action == "push" and ev.velocity == (0.0, 0.01, 0.0)
+    assert op.poll(20.0, "autonomous/push", "push", "autonomous") == []
+
+
+def test_after_needs_a_condition(tmp_path: Path) -> None:
+    with pytest.raises(OperatorFileError, match="after"):
+        load_operator_file(_write(tmp_path, "- {at: 1 s, after: 2 s, do: lock}\n"))
+
+
+def test_a_procedure_declares_its_operator_file(tmp_path: Path) -> None:
+    from suture_engine.runtime.run import declared_operator_file
+
+    proc = tmp_path / "p" / "proc.yaml"
+    assert (
+        declared_operator_file(proc, {"operator_file": "ops.yaml"}) == tmp_path / "p" / "ops.yaml"
+    )
+    assert declared_operator_file(proc, {"operator_file": ""}) is None
+    assert declared_operator_file(proc, {"duration": 3.0}) is None
+    absolute = tmp_path / "elsewhere.yaml"
+    assert declared_operator_file(proc, {"operator_file": str(absolute)}) == absolute
+
+
 def test_force_event_fields_are_si(tmp_path: Path) -> None:
     path = _write(
         tmp_path,
