@@ -194,3 +194,35 @@ def test_interactive_keys_under_a_pseudo_terminal(tmp_path: Path) -> None:
         ("abort", "interactive"),
     ]
     assert all(o["detail"].startswith("accepted") for o in ops)
+
+
+def test_gui_keys_reach_the_automaton(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The window's keys, end to end, on a headless PyBullet client.
+
+    Without a display no window opens, so PyBullet's keyboard query is replaced by a
+    script of presses; everything after it (mapping, operator channel, automaton,
+    trace) is the real path.
+    """
+    import pybullet as p
+
+    presses = {2: "l", 4: "r", 6: "a"}  # query number -> key pressed since the last one
+    calls = {"n": 0}
+
+    def keyboard(physicsClientId: int = 0) -> dict[int, int]:
+        calls["n"] += 1
+        key = presses.get(calls["n"])
+        return {ord(key): p.KEY_WAS_TRIGGERED} if key else {}
+
+    monkeypatch.setattr(p, "getKeyboardEvents", keyboard)
+    panel = LivePanel("steps", every=50, gui=True)
+    result = run_procedure(
+        PROCS / "steps.yaml", backend="pybullet", out=tmp_path / "run", on_tick=panel
+    )
+    assert result.summary.outcome == "aborted"
+    ops = [m.data for m in TraceReader(result.trace).messages(["/operator"])]
+    assert [(o["action"], o["source"]) for o in ops] == [
+        ("lock", "gui"),
+        ("resume", "gui"),
+        ("abort", "gui"),
+    ]
+    assert calls["n"] >= 6

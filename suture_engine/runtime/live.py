@@ -146,10 +146,12 @@ class TappedOperator:
 
     Args:
         inner: the wrapped source (the terminal's :class:`InteractiveOperator`), or None.
+        gui: the simulator's window takes keys (so more events may always come).
     """
 
-    def __init__(self, inner: Any) -> None:
+    def __init__(self, inner: Any, gui: bool = False) -> None:
         self.inner = inner
+        self.gui = gui
         self.pending: list[OperatorEvent] = []
         self.handed: list[tuple[float, OperatorEvent]] = []
         """(sim time [s], event) of every event handed to the interpreter."""
@@ -168,7 +170,9 @@ class TappedOperator:
 
     @property
     def exhausted(self) -> bool | None:
-        """The inner source's answer (None: it can always send more, like a keyboard)."""
+        """Whether no more events can come (None: a keyboard, it can always send more)."""
+        if self.gui:
+            return None
         if self.inner is None:
             return not self.pending
         return getattr(self.inner, "exhausted", None)
@@ -247,7 +251,7 @@ class LivePanel:
         t = interp.tick_index * interp.dt
         a = interp.automaton
         if self.tap is None:  # first tick: tap the operator source and the recorder
-            self.tap = TappedOperator(interp.operator_source)
+            self.tap = TappedOperator(interp.operator_source, gui=self.gui)
             interp.operator_source = self.tap
             interp.recorder = TappedRecorder(interp.recorder, self.events)
             self.events.append(f"{t:8.3f} s  started in {a.state}")
