@@ -215,6 +215,25 @@ def test_python_tags_construct_nothing(tag: str, tmp_path: Path) -> None:
     assert [(p.code, p.line) for p in problems] == [("yaml-tag", line)], problems
 
 
+_YAML_TOKENS = [
+    "[", "]", "{", "}", "&a ", "*a", "&b ", "*b", "!!python/object/apply:os.system ", "- ",
+    "\n", "  ", "k: ", "procedure: ", ", ", "<<: ", "!!binary ", "!!set ", "!!omap ", "? ",
+    "'", '"', "|\n", ">\n", "%YAML 1.1\n", "---\n", "...\n", "#", "\t", "1e999", ".nan",
+    "${", "}", "\ufeff", "\x00", "\\u0000", "~",
+]  # fmt: skip
+
+
+@given(st.lists(st.sampled_from(_YAML_TOKENS), max_size=60))
+def test_hostile_yaml_soup_gives_a_document_or_located_problems(tokens: list[str]) -> None:
+    from suture_engine.language.source import load_yaml_text
+    from suture_engine.validation.problem import ProblemError
+
+    try:
+        load_yaml_text("".join(tokens), "soup.yaml")
+    except ProblemError as exc:
+        assert exc.problems and all(p.file == "soup.yaml" and p.line >= 1 for p in exc.problems)
+
+
 def _measured(fn: Callable[[], list[Problem]]) -> tuple[list[Problem], int]:
     tracemalloc.start()
     try:
