@@ -18,6 +18,7 @@ ENTRY_POINT_GROUP = "suture_engine.backends"
 
 _BUILTIN: dict[str, str] = {
     "pybullet": "backends.pybullet.backend:PyBulletBackend",
+    "pybullet-surgical": "backends.pybullet.backend:SurgicalPyBulletBackend",
     "replay": "backends.replay:ReplayBackend",
     "ideal": "suture_engine.runtime.testing:IdealBackend",
 }

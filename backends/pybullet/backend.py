@@ -8,10 +8,15 @@ force/torque sensor, through the sensor models of :mod:`backends.pybullet.sensor
 ``physics.measurement_delay`` set the base sensor's noise and delay). Headless
 (``p.DIRECT``) by default; ``gui=True`` opens a window.
 
-The surgical scene (tissue, suture, tool jaws) of :mod:`backends.pybullet.scene`
-is not attached yet: ``ground_truth`` reports the robots' true joint states and
-tool-tip positions only, and tool commands update the reported tool state
-without physical jaws.
+With ``surgical_scene=True`` (the ``pybullet-surgical`` backend), the world is the
+surgical scene of :mod:`backends.pybullet.scene`
+(:func:`~backends.pybullet.scene.build_scene`): the robots with their tools mounted,
+the tissue pad and the thread. Each tick the tools, the thread and the tissue run
+their pre-step hooks before PyBullet steps; tool commands drive the tools (grasper
+jaws and hook, stitcher jaws and the needle hand-over); ``ground_truth`` adds the
+thread's centerline [m] and its largest segment tension [N], which the recorder
+writes on ``/ground_truth/*``. Skills never see them (they get observations only).
+The plain ``pybullet`` backend holds the robots alone.
 """
 
 from __future__ import annotations
@@ -33,7 +38,7 @@ from suture_engine.runtime.observation import (
     scene_geometry,
 )
 
-__all__ = ["DEFAULT_BASES", "DEFAULT_Q0", "PyBulletBackend"]
+__all__ = ["DEFAULT_BASES", "DEFAULT_Q0", "PyBulletBackend", "SurgicalPyBulletBackend"]
 
 DEFAULT_Q0 = (0.0, 0.0, 0.0, 0.08)
 """Start joints when the scene gives none [rad, rad, rad, m]."""
@@ -72,6 +77,11 @@ class PyBulletBackend:
         dt: control and physics period [s].
         q0: start joints per robot (default :data:`DEFAULT_Q0`).
         friction: simulate joint friction.
+        surgical_scene: build the tissue, thread and tools of the scene: True needs a
+            scene with robots, a tissue and a suture; False (the default) builds the
+            robots alone (the mounted tools' and thread's weight is not in the engine's
+            gravity model, so the base-sensor tension estimate of a robots-only
+            procedure would read it as tension). None: when the scene declares them.
     """
 
     name = "pybullet"
@@ -82,6 +92,7 @@ class PyBulletBackend:
         dt: float = 1e-3,
         q0: Mapping[str, tuple[float, ...]] | None = None,
         friction: bool = True,
+        surgical_scene: bool | None = False,
     ) -> None:
         self.gui = gui
         self.dt = dt
@@ -95,6 +106,9 @@ class PyBulletBackend:
         self._hands: list[list[Any]] = []
         self._geometry = SceneGeometry()
         self._p: Any = None
+        self.surgical_scene = surgical_scene
+        self.scene: Any = None
+        """The :class:`backends.pybullet.scene.Scene` when the surgical scene is built."""
 
     def _bases(self, scene: Any) -> dict[str, tuple[Any, Any, str]]:
         robots = getattr(scene, "robots", None)
@@ -118,11 +132,6 @@ class PyBulletBackend:
 
         self.close()
         self._p = p
-        self.client = p.connect(p.GUI if self.gui else p.DIRECT)
-        if self.client < 0:
-            raise BackendError(self.name, "cannot connect to PyBullet")
-        p.setTimeStep(self.dt, physicsClientId=self.client)
-        p.setGravity(0.0, 0.0, -9.81, physicsClientId=self.client)
         self.robots = {}
         self._tools = {}
         self._forces = []
@@ -130,30 +139,118 @@ class PyBulletBackend:
         self.tick = 0
         base_positions = {}
         ft_model = self._ft_model(scene)
-        for i, (name, (pos, rpy, tool)) in enumerate(sorted(self._bases(scene).items())):
-            sim = EndoBotSim(
-                self.client,
-                base_position=pos,
-                base_orientation=_quaternion(rpy),
-                q0=self._q0.get(name, DEFAULT_Q0),
-                friction=self.friction,
-                ft_sensor=ft_model,
-                seed=seed * 1000 + i,
-            )
-            self.robots[name] = sim
-            self._tools[name] = ToolState(kind=tool)
-            base_positions[name] = (float(pos[0]), float(pos[1]), float(pos[2]))
+        if self._wants_surgical_scene(scene):
+            self._build_surgical_scene(scene, seed, ft_model)
+            for name, (pos, _rpy, tool) in sorted(self._bases(scene).items()):
+                self._tools[name] = ToolState(kind=tool)
+                base_positions[name] = (float(pos[0]), float(pos[1]), float(pos[2]))
+        else:
+            client = p.connect(p.GUI if self.gui else p.DIRECT)
+            if client < 0:
+                raise BackendError(self.name, "cannot connect to PyBullet")
+            self.client = client
+            p.setTimeStep(self.dt, physicsClientId=client)
+            p.setGravity(0.0, 0.0, -9.81, physicsClientId=client)
+            for i, (name, (pos, rpy, tool)) in enumerate(sorted(self._bases(scene).items())):
+                sim = EndoBotSim(
+                    client,
+                    base_position=pos,
+                    base_orientation=_quaternion(rpy),
+                    q0=self._q0.get(name, DEFAULT_Q0),
+                    friction=self.friction,
+                    ft_sensor=ft_model,
+                    seed=seed * 1000 + i,
+                )
+                self.robots[name] = sim
+                self._tools[name] = ToolState(kind=tool)
+                base_positions[name] = (float(pos[0]), float(pos[1]), float(pos[2]))
         # One step held by gravity torques so the base sensors read the weight (PyBullet
         # computes joint reaction forces in the step), then put the joints back.
         from suture_engine.robot.endobot import gravity_vector
 
         for name, sim in self.robots.items():
             sim.apply(gravity_vector(self._q0.get(name, DEFAULT_Q0), sim.model_params))
-        p.stepSimulation(physicsClientId=self.client)
+        self._physics_step()
         for name, sim in self.robots.items():
             sim.reset(self._q0.get(name, DEFAULT_Q0))
         self._geometry = scene_geometry(scene, base_positions)
         return self.observe()
+
+    def _wants_surgical_scene(self, scene: Any) -> bool:
+        if self.surgical_scene is False or self.gui:
+            return False
+        declared = (
+            getattr(scene, "tissue", None) is not None
+            and getattr(scene, "suture", None) is not None
+            and bool(getattr(scene, "robots", None))
+        )
+        if self.surgical_scene and not declared:
+            raise BackendError(self.name, "the surgical scene needs robots, a tissue and a suture")
+        return declared
+
+    def _build_surgical_scene(self, scene: Any, seed: int, ft_model: Any) -> None:
+        """The scene engineer's world (robots with mounted tools, tissue, thread)."""
+        import numpy as np
+
+        from backends.pybullet.scene import build_scene
+        from backends.pybullet.sensors import Sensor
+
+        built = build_scene(scene, seed)
+        self.scene = built
+        self.client = built.client
+        for i, (name, sim) in enumerate(sorted(built.robots.items())):
+            q0 = self._q0.get(name, DEFAULT_Q0)
+            sim.reset(q0)
+            sim.friction_enabled = self.friction
+            if ft_model is not None:
+                # build_scene makes ideal base sensors; give them the scene's noise and delay.
+                sim._ft = Sensor(ft_model, 6, np.random.default_rng(seed * 1000 + i))
+            self.robots[name] = sim
+
+    def _physics_step(self) -> None:
+        """One PyBullet step, with the surgical scene's pre-step hooks when it is built."""
+        scene = self.scene
+        if scene is not None:
+            for tool in scene.tools.values():
+                tool.step()
+            scene.suture.pre_step()
+            if scene.tissue is not None:
+                scene.tissue.pre_step()
+        self._p.stepSimulation(physicsClientId=self.client)
+        if scene is not None:
+            scene.time += self.dt
+
+    def _drive_tool(self, name: str, old: ToolState, new: ToolState) -> None:
+        """Turn a change of the commanded tool state into the simulated tool's actions."""
+        scene = self.scene
+        tool = scene.tools.get(name) if scene is not None else None
+        if tool is None:
+            return
+        from backends.pybullet.tools import Grasper, Stitcher, ToolError
+
+        try:
+            if isinstance(tool, Stitcher):
+                # Jaw 1 / jaw 2 are the stitcher's -x / +x jaws; the needle sits in
+                # needle_holder. Closing the empty jaw while the holder is closed hands
+                # the needle over (Fig. 4.3); both open opens the jaws.
+                closed = (bool(new.jaw_closed), bool(new.jaw2_closed))
+                before = (bool(old.jaw_closed), bool(old.jaw2_closed))
+                receiver = 1 - tool.needle_holder
+                if closed != before:
+                    if not any(closed):
+                        tool.open_jaws()
+                    else:
+                        tool.close_jaws()
+                        if closed[receiver] and not before[receiver] and closed[1 - receiver]:
+                            if not tool.passing and tool.opening == 0.0:
+                                tool.pass_needle()
+            elif isinstance(tool, Grasper):
+                if new.jaw_closed != old.jaw_closed:
+                    (tool.close if new.jaw_closed else tool.open)()
+                if new.hook_extension != old.hook_extension:
+                    (tool.extend_hook if new.hook_extension > 0.0 else tool.retract_hook)()
+        except ToolError as exc:
+            raise BackendError(self.name, f"tool of {name}: {exc}") from None
 
     def _ft_model(self, scene: Any) -> Any:
         """The base F/T sensor's imperfections from the scene's physics settings.
@@ -210,6 +307,8 @@ class PyBulletBackend:
                     t.jaw2_closed if rc.tool.jaw2_closed is None else rc.tool.jaw2_closed,
                     t.hook_extension if rc.tool.hook_extension is None else rc.tool.hook_extension,
                 )
+                if self.scene is not None:
+                    self._drive_tool(name, t, self._tools[name])
 
     def apply_external_force(
         self, robot: str, force: tuple[float, float, float], duration: float
@@ -264,7 +363,7 @@ class PyBulletBackend:
                 p.WORLD_FRAME,
                 physicsClientId=self.client,
             )
-        p.stepSimulation(physicsClientId=self.client)
+        self._physics_step()
         self.tick += 1
 
     def geometry(self) -> SceneGeometry:
@@ -272,11 +371,18 @@ class PyBulletBackend:
         return self._geometry
 
     def ground_truth(self) -> Mapping[str, Any]:
-        """True joint states and tool-tip positions (evaluation only)."""
+        """True tool-tip positions [m] and, with the surgical scene, the thread's
+        ``centerline`` [m] and ``tension_N`` (its largest segment tension [N]).
+        Evaluation and traces only."""
         out: dict[str, Any] = {}
         for name, sim in self.robots.items():
             tip, _ = sim.true_tool_pose()
             out[f"{name}/tool_tip"] = tip
+        if self.scene is not None:
+            suture = self.scene.suture
+            out["centerline"] = suture.centerline()
+            tensions = suture.tensions()
+            out["tension_N"] = float(tensions.max()) if len(tensions) else 0.0
         return out
 
     def close(self) -> None:
@@ -288,3 +394,18 @@ class PyBulletBackend:
                 pass
         self.client = None
         self.robots = {}
+        self.scene = None
+
+
+class SurgicalPyBulletBackend(PyBulletBackend):
+    """The PyBullet backend with the surgical scene (tissue, thread, mounted tools).
+
+    Args:
+        kwargs: as :class:`PyBulletBackend` (``surgical_scene`` is True).
+    """
+
+    name = "pybullet-surgical"
+
+    def __init__(self, **kwargs: Any) -> None:
+        kwargs.setdefault("surgical_scene", True)
+        super().__init__(**kwargs)

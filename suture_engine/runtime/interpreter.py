@@ -28,6 +28,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from suture_engine.errors import SutureError
 from suture_engine.runtime.automaton import Automaton, Mode, Plan, StepSpec
 from suture_engine.runtime.context import SkillContext
 from suture_engine.runtime.controller import ModeController
@@ -417,6 +418,25 @@ class Interpreter:
             self.progress(obs.t, self.max_time_s)
         return True
 
+    def _knot(self) -> dict[str, Any] | None:
+        """The knot on the final ground-truth centerline (``knot_summary``: the
+        classifier's topology and the knot's geometry against the tissue plane), or
+        None when the backend simulates no thread. Evaluation only: skills never see it."""
+        truth = self.backend.ground_truth()
+        centerline = truth.get("centerline")
+        if centerline is None:
+            return None
+        from suture_engine.suture.geometry import knot_summary
+
+        geometry = getattr(self.backend, "geometry", None)
+        scene = geometry() if geometry is not None else None
+        point = scene.entry_point if scene is not None else (0.0, 0.0, 0.0)
+        normal = scene.tissue_normal if scene is not None else (0.0, 0.0, 1.0)
+        try:
+            return dict(knot_summary(centerline, tissue_point=point, tissue_normal=normal))
+        except SutureError as exc:  # e.g. a degenerate centerline
+            return {"type": None, "error": str(exc)}
+
     def _stuck(self) -> bool:
         """Locked and waiting, for 10 ticks, with no timed operator event left."""
         a = self.automaton
@@ -474,7 +494,7 @@ class Interpreter:
             retries=a.retries_total,
             operator_events=self.operator_events,
             metrics=metrics,
-            knot=None,
+            knot=self._knot(),
             seed=self.seed,
             backend=backend_name,
             ticks=self.tick_index + 1,

@@ -1,0 +1,105 @@
+"""The PyBullet backend with the surgical scene: tools driven by tool commands, ground truth
+of the thread in the trace, the knot entry of the summary, nothing of it in observations."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from backends.pybullet.backend import PyBulletBackend, SurgicalPyBulletBackend
+from backends.pybullet.tools import Grasper, JawState, Stitcher
+from suture_engine.language.loader import load_procedure
+from suture_engine.robot.endobot import gravity_vector
+from suture_engine.runtime.observation import Command, RobotCommand, ToolCommand
+from suture_engine.runtime.run import run_procedure
+
+PROCS = Path(__file__).resolve().parent / "procedures"
+BENCH = PROCS.parent.parent / "procedures" / "shared-control-line.yaml"  # hook grasper
+
+
+@pytest.fixture(scope="module")
+def scene_model():  # type: ignore[no-untyped-def]
+    return load_procedure(PROCS / "reach.yaml").scene
+
+
+def _hold(be: PyBulletBackend, tools: dict[str, ToolCommand], ticks: int) -> None:
+    """Gravity-compensating torques with the given tool commands, for some ticks."""
+    for _ in range(ticks):
+        obs = be.observe()
+        cmds = {}
+        for name, sim in be.robots.items():
+            tau = gravity_vector(np.asarray(obs.robots[name].q), sim.model_params)
+            cmds[name] = RobotCommand.torque(tau, tools.get(name))
+        be.apply(Command(cmds))
+        be.step()
+
+
+def test_tool_commands_drive_the_simulated_tools() -> None:
+    be = SurgicalPyBulletBackend()
+    try:
+        be.reset(load_procedure(BENCH).scene, 0)
+        assert be.scene is not None
+        grasper, stitcher = be.scene.tools["endobot_2"], be.scene.tools["endobot_1"]
+        assert isinstance(grasper, Grasper) and isinstance(stitcher, Stitcher)
+        assert grasper.state is JawState.OPEN and stitcher.needle_holder == 0
+        _hold(be, {"endobot_2": ToolCommand(jaw_closed=True, hook_extension=0.01)}, 400)
+        assert grasper.state is JawState.CLOSED
+        assert grasper.hook_extension == pytest.approx(1.0)  # extended over the hinge
+        # Stitcher: close the needle's jaw, then the other one: the needle is handed over.
+        _hold(be, {"endobot_1": ToolCommand(jaw_closed=True, jaw2_closed=False)}, 200)
+        assert stitcher.needle_holder == 0
+        _hold(be, {"endobot_1": ToolCommand(jaw_closed=True, jaw2_closed=True)}, 400)
+        assert stitcher.needle_holder == 1
+        _hold(be, {"endobot_2": ToolCommand(jaw_closed=False, hook_extension=0.0)}, 400)
+        assert grasper.state is JawState.OPEN and grasper.hook_extension == pytest.approx(0.0)
+    finally:
+        be.close()
+
+
+def test_ground_truth_has_the_thread_and_observations_do_not(scene_model) -> None:  # type: ignore[no-untyped-def]
+    be = SurgicalPyBulletBackend()
+    try:
+        first = be.reset(scene_model, 0)
+        truth = be.ground_truth()
+        line = np.asarray(truth["centerline"])
+        assert line.ndim == 2 and line.shape[1] == 3 and len(line) >= 40
+        # The thread's length along its centerline is the scene's 300 mm (within a capsule).
+        length = float(np.sum(np.linalg.norm(np.diff(line, axis=0), axis=1)))
+        assert length == pytest.approx(0.3, abs=0.01)
+        assert truth["tension_N"] >= 0.0
+        fields = {f.name for f in dataclasses.fields(first)}
+        for robot in first.robots.values():
+            fields |= {f.name for f in dataclasses.fields(robot)}
+        assert not fields & {"centerline", "tension_N", "ground_truth"}
+    finally:
+        be.close()
+
+
+def test_plain_backend_builds_robots_only(scene_model) -> None:  # type: ignore[no-untyped-def]
+    be = PyBulletBackend()
+    try:
+        be.reset(scene_model, 0)
+        assert be.scene is None and "centerline" not in be.ground_truth()
+    finally:
+        be.close()
+
+
+def test_run_records_ground_truth_and_fills_the_knot(tmp_path: Path) -> None:
+    from suture_engine.trace.reader import TraceReader
+
+    result = run_procedure(
+        PROCS / "skills-grasp-rotate.yaml", backend="pybullet-surgical", out=tmp_path / "d"
+    )
+    summary = json.loads(result.summary_path.read_text())
+    assert summary["outcome"] == "succeeded"
+    # Grasp, rotate and release tie nothing: the classifier must call the thread unknotted.
+    knot = summary["knot"]
+    assert knot is not None and knot["type"] == "unknot" and knot["crossings"] == 0
+    topics = {m.topic for m in TraceReader(result.trace).messages()}
+    assert {"/ground_truth/suture", "/ground_truth/tension"} <= topics
+    plain = run_procedure(PROCS / "steps.yaml", backend="pybullet", out=tmp_path / "p")
+    assert plain.summary.knot is None
