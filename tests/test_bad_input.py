@@ -650,10 +650,6 @@ XFAIL: dict[str, str] = {
         "--max-time -1 is accepted: the run starts, fails at once and writes summary.json "
         "(cli.py run / runtime/cli_run.py: no check that the limit is positive)"
     ),
-    "report-out-not-writable": (
-        "an unwritable --out is reported by its temporary file's name, not the path given "
-        "(report/html.py write_report: the OSError of mkstemp is passed through)"
-    ),
 }
 
 
