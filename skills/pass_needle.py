@@ -119,8 +119,9 @@ class PassNeedle(Skill):
     """F_v, viscous suture-tissue drag [N*s/m] (4.5); assumed."""
     DEFAULT_MAX_TENSION: ClassVar[float] = 3.0
     """f_max when neither the step nor the scene gives one [N]."""
-    TOLERANCE: ClassVar[float] = 1e-3
-    """Tip position tolerance at the end of each path [m]."""
+    TOLERANCE: ClassVar[float] = 3e-3
+    """Tip position tolerance at the end of the approach and the bite [m]: both end on
+    the tissue surface, which pushes back on the tool."""
     LENGTH_TOLERANCE: ClassVar[float] = 0.5e-3
     """How close to l_d the estimated length must come [m]."""
     SETTLE_S: ClassVar[float] = 1.0
