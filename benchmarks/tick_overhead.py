@@ -45,7 +45,7 @@ def _replay(
 
     proc, plan = load_plan(PROCEDURE)
     be = ReplayBackend(trace)
-    first = be.reset()
+    first = be.reset(proc.scene, 0)
     recorder: Recorder = Recorder()
     if out is not None:
         recorder = TraceRecorder(
