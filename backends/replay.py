@@ -145,8 +145,20 @@ class ReplayBackend:
         return Measurement(self.tick, self.tick * self.period_ns * 1e-9, robots)
 
     def apply(self, command: Command) -> None:
-        """Keep the last command (the comparison reads the trace the engine writes)."""
+        """Keep the last command (the comparison reads the trace the engine writes) and
+        update the reported tool states from its tool commands, as the live backend does."""
         self.last_applied = command
+        for name, rc in command.robots.items():
+            tc = rc.tool
+            if tc is None:
+                continue
+            t = self._tools.get(name, ToolState())
+            self._tools[name] = ToolState(
+                t.kind,
+                t.jaw_closed if tc.jaw_closed is None else tc.jaw_closed,
+                t.jaw2_closed if tc.jaw2_closed is None else tc.jaw2_closed,
+                t.hook_extension if tc.hook_extension is None else tc.hook_extension,
+            )
 
     def apply_external_force(
         self, robot: str, force: tuple[float, float, float], duration: float
