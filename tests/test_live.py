@@ -133,6 +133,7 @@ def test_panel_follows_a_scripted_run(tmp_path: Path) -> None:
     assert result.summary.outcome == "aborted"
     snap = panel.snapshot
     assert snap.mode == "terminal"
+    assert snap.state == "ABORTED" and not snap.waiting
     assert snap.sim_time_s == pytest.approx(result.summary.sim_time_s, abs=2e-3)
     text = "\n".join(snap.events)
     assert "operator force (scripted) accepted" in text

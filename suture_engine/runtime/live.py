@@ -279,7 +279,7 @@ class LivePanel:
             sim_time_s=t,
             real_time_factor=t / wall if wall > 0 else 0.0,
             events=tuple(self.events),
-            waiting=bool(a.waiting_for_operator),
+            waiting=bool(a.waiting_for_operator) and not a.finished,
         )
 
     def _gui(self, interp: Any) -> None:
