@@ -167,8 +167,8 @@ def _live_hooks(
         if video.suffix.lower() != ".gif":
             _error(f"--video {video}: the video is written as a GIF; name it FILE.gif")
             return None, None, None
-        if backend != "pybullet":
-            _error(f"--video needs --backend pybullet (the {backend} backend renders no frames)")
+        if backend in ("ideal", "replay"):
+            _error(f"--video needs a pybullet backend (the {backend} backend renders no frames)")
             return None, None, None
         try:
             capture = VideoCapture(interval_s=interval)
