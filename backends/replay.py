@@ -93,6 +93,21 @@ class ReplayBackend:
             self.robots = tuple(sorted(self._q))
         self.last_tick = self._last_complete_tick()
         self.tick = 0
+        # Read-only (q, wrench) arrays per (robot, tick), built once here, off the tick's
+        # hot path, and shared by every observation of that tick. A malformed entry is left
+        # out and raises when observed, as before.
+        self._frozen: dict[tuple[str, int], tuple[Any, Any]] = {}
+        for r in self.robots:
+            ws = self._w.get(r, {})
+            for k, q in self._q.get(r, {}).items():
+                w = ws.get(k)
+                if w is None or len(q) != 4 or len(w) != 6:
+                    continue
+                qa = np.array(q, dtype=np.float64)
+                wa = np.array(w, dtype=np.float64)
+                qa.flags.writeable = False
+                wa.flags.writeable = False
+                self._frozen[(r, k)] = (qa, wa)
         self.last_applied: Command | None = None
         self._tools: dict[str, ToolState] = {r: ToolState() for r in self.robots}
         self._geometry = SceneGeometry()
@@ -134,15 +149,18 @@ class ReplayBackend:
         """
         if self.tick > self.last_tick:
             raise EndOfRecording(self.tick)
-        robots = {
-            r: RobotMeasurement(
-                np.array(self._q[r][self.tick], dtype=np.float64),
-                np.array(self._w[r][self.tick], dtype=np.float64),
-                self._tools.get(r, ToolState()),
+        k = self.tick
+        robots = {}
+        for r in self.robots:
+            frozen = self._frozen.get((r, k))
+            if frozen is None:  # malformed: the checked constructor says why
+                probe = RobotMeasurement(np.array(self._q[r][k]), np.array(self._w[r][k]))
+                frozen = self._frozen[(r, k)] = (probe.q, probe.base_wrench)
+            tool = self._tools.get(r)
+            robots[r] = RobotMeasurement.trusted(
+                frozen[0], frozen[1], tool if tool is not None else ToolState()
             )
-            for r in self.robots
-        }
-        return Measurement(self.tick, self.tick * self.period_ns * 1e-9, robots)
+        return Measurement(k, k * self.period_ns * 1e-9, robots)
 
     def apply(self, command: Command) -> None:
         """Keep the last command (the comparison reads the trace the engine writes) and

@@ -7,6 +7,7 @@ remote centre of motion (the spherical joint at the incision): a line
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import TYPE_CHECKING, Any, ClassVar, Literal
 
@@ -20,6 +21,43 @@ if TYPE_CHECKING:
     from suture_engine.validation.problem import Problem
 
 __all__ = ["MoveConstrained", "MoveConstrainedParams"]
+
+
+@functools.cache
+def _step_imports() -> tuple[Any, ...]:
+    """The names step() uses, imported once (lazily: validation never imports numpy)."""
+    import numpy as np
+
+    from suture_engine.control.shared import (
+        TaskSpaceGains,
+        TaskSpaceOutput,
+        constraint_force,
+        joint_space_shared_control,
+        task_space_shared_control,
+        task_vector,
+    )
+    from suture_engine.robot import endobot
+    from suture_engine.runtime.observation import (
+        Command,
+        RobotCommand,
+        SkillStatus,
+        StepResult,
+    )
+
+    return (
+        np,
+        TaskSpaceGains,
+        TaskSpaceOutput,
+        constraint_force,
+        joint_space_shared_control,
+        task_space_shared_control,
+        task_vector,
+        endobot,
+        Command,
+        RobotCommand,
+        SkillStatus,
+        StepResult,
+    )
 
 
 class MoveConstrainedParams(SkillParams):
@@ -137,6 +175,8 @@ class MoveConstrained(Skill):
         self._exit_base: Any = None
         self._ldot_max: float | None = None
         self._peak_e: Any = None
+        self._c_zero: Any = None
+        self._df: Any = None
         self._peak_f: Any = None
         self.last_qp: Any = None
         """The last tick's :class:`~suture_engine.control.constrained_qp.QPResult` (traces)."""
@@ -197,6 +237,7 @@ class MoveConstrained(Skill):
             self._gravity_params = dataclasses.replace(E1, gravity=gravity)
         self._peak_e = np.zeros(self._fixture.rows)
         self._peak_f = np.zeros(self._fixture.rows)
+        self._c_zero = np.zeros(self._fixture.rows)
         if p.mode == "shared":
             return
         has_rate = p.max_tension is not None
@@ -222,6 +263,7 @@ class MoveConstrained(Skill):
             if p.fixture == "circle":  # the shorter way round (6.49)
                 f_goal[0] = self._f0[0] + (f_goal[0] - self._f0[0] + np.pi) % (2 * np.pi) - np.pi
             self._f_goal = f_goal
+            self._df = f_goal - self._f0
         else:
             self._x_goal = goal
         self._duration = max(0.1, 1.5 * float(np.linalg.norm(self._x_goal[:3] - x0[:3])) / p.speed)
@@ -239,21 +281,20 @@ class MoveConstrained(Skill):
             return (float(pt[0]), float(pt[1]), float(pt[2]))
         return (float(p.target[0]), float(p.target[1]), float(p.target[2]))
 
+    def _at(self, tt: float) -> Any:
+        """Task reference at time tt [s] since start (smoothstep in f)."""
+        s = min(max(tt / self._duration, 0.0), 1.0)
+        sigma = s * s * (3.0 - 2.0 * s)
+        if self._fixture.kind == "eq":
+            f = self._f0 + sigma * self._df  # _df = f_goal - f0, computed once
+            return self._fixture.inverse(self._c_zero, f)
+        return self._x_goal
+
     def _reference(self, t: float) -> tuple[Any, Any]:
         """Task reference and its velocity at time t [s] since start (smoothstep in f)."""
-        import numpy as np
-
-        def at(tt: float) -> Any:
-            s = min(max(tt / self._duration, 0.0), 1.0)
-            sigma = s * s * (3.0 - 2.0 * s)
-            if self._fixture.kind == "eq":
-                f = self._f0 + sigma * (self._f_goal - self._f0)
-                return self._fixture.inverse(np.zeros(self._fixture.rows), f)
-            return self._x_goal
-
         h = 1e-3
-        x = at(t)
-        return x, (at(t + h) - x) / h
+        x = self._at(t)
+        return x, (self._at(t + h) - x) / h
 
     def step(self, ctx: Any, obs: Any) -> Any:
         """One tick: the QP's joint velocities (autonomous) or the shared-control torques.
@@ -272,24 +313,20 @@ class MoveConstrained(Skill):
         Returns:
             A :class:`suture_engine.runtime.observation.StepResult`.
         """
-        import numpy as np
-
-        from suture_engine.control.shared import (
+        (
+            np,
             TaskSpaceGains,
             TaskSpaceOutput,
             constraint_force,
             joint_space_shared_control,
             task_space_shared_control,
             task_vector,
-        )
-        from suture_engine.robot import endobot
-        from suture_engine.runtime.observation import (
+            endobot,
             Command,
             RobotCommand,
             SkillStatus,
             StepResult,
-        )
-
+        ) = _step_imports()
         p = self.params
         assert isinstance(p, MoveConstrainedParams)
         ro = obs.robots[self._robot]
@@ -340,7 +377,8 @@ class MoveConstrained(Skill):
         if "extension_rate" in res.active:
             self._throttled += ctx.dt  # the tension bound slows the motion on purpose
         q_ref += res.qdot * ctx.dt
-        command = Command({self._robot: RobotCommand.position(q_ref.copy(), res.qdot)})
+        # Fresh arrays, handed over: q_ref.copy() here, res.qdot a copy the QP made.
+        command = Command({self._robot: RobotCommand.trusted_position(q_ref.copy(), res.qdot)})
         if self._qp.consecutive_failures >= self.MAX_QP_FAILURES:
             return StepResult(
                 command,

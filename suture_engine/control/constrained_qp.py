@@ -449,7 +449,9 @@ class ConstrainedQP:
         np.multiply(J.T, w.task, out=JW)
         np.matmul(JW, J, out=self._H)
         self._H += self._damp
-        np.take(self._H, self._p_idx, out=self._Px_qd)
+        # mode='clip' (the indices are in range): with out= and the default 'raise',
+        # numpy buffers the result first (~4 us a call here).
+        self._H.take(self._p_idx, out=self._Px_qd, mode="clip")
         # q over qdot: -J^T W v_ref, v_ref = v_target + K_x (x_target - x).
         vref = self._vref
         if x_target is not None:
@@ -490,7 +492,7 @@ class ConstrainedQP:
                 else:
                     g_ext.fill(0.0)
                 self._u[row] = extension_rate_max
-        np.take(self._gflat, self._a_idx, out=self._Ax)
+        self._gflat.take(self._a_idx, out=self._Ax, mode="clip")
 
     def _finish(self, status: str, iters: int, solve_time: float, z: Array | None) -> QPResult:
         self.solves += 1

@@ -99,6 +99,19 @@ class RobotMeasurement:
         object.__setattr__(self, "q", _frozen_array(self.q, N_JOINTS))
         object.__setattr__(self, "base_wrench", _frozen_array(self.base_wrench, 6))
 
+    @classmethod
+    def trusted(
+        cls, q: FloatArray, base_wrench: FloatArray, tool: ToolState, fault: bool = False
+    ) -> RobotMeasurement:
+        """A measurement from read-only float64 arrays of shapes (4,) and (6,) that the
+        caller never changes (no copy, no checks): a backend's per-tick fast path."""
+        m = object.__new__(cls)
+        object.__setattr__(m, "q", q)
+        object.__setattr__(m, "base_wrench", base_wrench)
+        object.__setattr__(m, "tool", tool)
+        object.__setattr__(m, "fault", fault)
+        return m
+
 
 @dataclass(frozen=True)
 class SceneGeometry:
@@ -269,6 +282,26 @@ class RobotCommand:
         return cls(
             CommandMode.POSITION, q=_frozen_array(q), qd=None if qd is None else qd, tool=tool
         )
+
+    @classmethod
+    def trusted_position(
+        cls, q: FloatArray, qd: FloatArray | None = None, tool: ToolCommand | None = None
+    ) -> RobotCommand:
+        """A position setpoint from arrays the caller hands over (no copy, no checks).
+
+        A skill's per-tick fast path; ``q`` (and ``qd``) must be fresh float64 arrays of
+        shape (4,) that the caller never changes afterwards. They are made read-only.
+        """
+        cmd = object.__new__(cls)
+        q.flags.writeable = False
+        if qd is not None:
+            qd.flags.writeable = False
+        object.__setattr__(cmd, "mode", CommandMode.POSITION)
+        object.__setattr__(cmd, "q", q)
+        object.__setattr__(cmd, "qd", qd)
+        object.__setattr__(cmd, "tau", None)
+        object.__setattr__(cmd, "tool", tool)
+        return cmd
 
     @classmethod
     def torque(cls, tau: object, tool: ToolCommand | None = None) -> RobotCommand:
