@@ -8,7 +8,7 @@ from pydantic import Field
 
 from skills.base import Skill, SkillParams
 from suture_engine.language.refs import PointRef, RoleRef
-from suture_engine.language.units import Force, Position
+from suture_engine.language.units import Force, Length, Position
 
 __all__ = ["Grasp", "GraspParams"]
 
@@ -28,6 +28,10 @@ class GraspParams(SkillParams):
     """Added to the target, world frame [m]."""
     force: Force = Field(default=2.0, gt=0.0, le=20.0)
     """Grip force [N]."""
+    tolerance: Length | None = Field(default=None, gt=0.0, le=5e-3)
+    """Tip position tolerance at the goal [m]; ``None`` uses the skill's
+    :attr:`TOLERANCE`. A looser one suits a backend whose position control leaves
+    a steady error (e.g. heavier mounted tools)."""
 
 
 class Grasp(Skill):
@@ -111,6 +115,12 @@ class Grasp(Skill):
         )
         self._failure = self._path.first_violation(joint_box(ctx, self._robot))
 
+    def _tolerance(self) -> float:
+        """The tip position tolerance in force [m]."""
+        p = self.params
+        assert isinstance(p, GraspParams)
+        return self.TOLERANCE if p.tolerance is None else float(p.tolerance)
+
     def step(self, ctx: Any, obs: Any) -> Any:
         """Approach with the jaw open, then close it; success once it reports closed.
 
@@ -145,7 +155,7 @@ class Grasp(Skill):
             err = float(
                 np.linalg.norm(tip_world(obs.robots[self._robot].q, self._base) - self._goal)
             )
-            if err <= self.TOLERANCE:
+            if err <= self._tolerance():
                 self._t_close = obs.t
             elif t >= self._path.duration + self.SETTLE_S:
                 return StepResult(

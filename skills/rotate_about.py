@@ -18,7 +18,7 @@ from pydantic import Field
 
 from skills.base import Skill, SkillParams
 from suture_engine.language.refs import PointRef, RoleRef
-from suture_engine.language.units import Angle, AngularSpeed, Position
+from suture_engine.language.units import Angle, AngularSpeed, Length, Position
 
 __all__ = ["RotateAbout", "RotateAboutParams", "axis_rotation"]
 
@@ -37,6 +37,10 @@ class RotateAboutParams(SkillParams):
     """When set, ``point`` is an offset [m] from that robot's tool tip."""
     speed: AngularSpeed = Field(default=0.5, gt=0.0, le=5.0)
     """Angular speed [rad/s]."""
+    tolerance: Length | None = Field(default=None, gt=0.0, le=5e-3)
+    """Tip position tolerance at the goal [m]; ``None`` uses the skill's
+    :attr:`TOLERANCE`. A looser one suits a backend whose position control leaves
+    a steady error (e.g. heavier mounted tools)."""
 
 
 def axis_rotation(axis: Any, angle: float) -> Any:
@@ -176,6 +180,12 @@ class RotateAbout(Skill):
             self._failure = self._path.first_violation(joint_box(ctx, self._robot))
         self._goal = tip_world(self._path.joints_at(1.0), self._base)
 
+    def _tolerance(self) -> float:
+        """The tip position tolerance in force [m]."""
+        p = self.params
+        assert isinstance(p, RotateAboutParams)
+        return self.TOLERANCE if p.tolerance is None else float(p.tolerance)
+
     def step(self, ctx: Any, obs: Any) -> Any:
         """Track the rotation; success at the goal.
 
@@ -205,7 +215,7 @@ class RotateAbout(Skill):
         if not done:
             return StepResult(cmd)
         err = float(np.linalg.norm(tip_world(obs.robots[self._robot].q, self._base) - self._goal))
-        if err <= self.TOLERANCE:
+        if err <= self._tolerance():
             return StepResult(cmd, SkillStatus.SUCCESS)
         if t >= self._path.duration + self.SETTLE_S:
             return StepResult(

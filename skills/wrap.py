@@ -48,6 +48,10 @@ class WrapParams(SkillParams):
     """Radius of the loop around the other tool [m]."""
     speed: Speed = Field(default=0.01, gt=0.0, le=0.2)
     """Tool-tip speed [m/s]."""
+    tolerance: Length | None = Field(default=None, gt=0.0, le=5e-3)
+    """Tip position tolerance at the goal [m]; ``None`` uses the skill's
+    :attr:`TOLERANCE`. A looser one suits a backend whose position control leaves
+    a steady error (e.g. heavier mounted tools)."""
 
 
 class Wrap(Skill):
@@ -178,6 +182,12 @@ class Wrap(Skill):
         for path in self._paths:
             self._failure = self._failure or path.first_violation(box)
 
+    def _tolerance(self) -> float:
+        """The tip position tolerance in force [m]."""
+        p = self.params
+        assert isinstance(p, WrapParams)
+        return self.TOLERANCE if p.tolerance is None else float(p.tolerance)
+
     def step(self, ctx: Any, obs: Any) -> Any:
         """Track the approach then the arc; success at the arc's end.
 
@@ -212,7 +222,7 @@ class Wrap(Skill):
         if not done:
             return StepResult(cmd)
         err = float(np.linalg.norm(tip_world(obs.robots[self._robot].q, self._base) - self._goal))
-        if err <= self.TOLERANCE:
+        if err <= self._tolerance():
             return StepResult(cmd, SkillStatus.SUCCESS)
         if t_loop >= loop.duration + self.SETTLE_S:
             return StepResult(cmd, SkillStatus.FAILURE, f"tool tip {err * 1e3:.2f} mm off the loop")
