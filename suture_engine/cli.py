@@ -37,7 +37,12 @@ def run(
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
     set_: Annotated[
         list[str] | None,
-        typer.Option("--set", help="Override a procedure parameter: name=value (repeatable)."),
+        typer.Option(
+            "--set",
+            help="Override a procedure parameter: name=value (repeatable). Not name=value or "
+            "no such parameter: usage error (exit 2); a value the parameter refuses: "
+            "invalid (exit 1).",
+        ),
     ] = None,
     out: Annotated[
         Path | None, typer.Option(help="Output folder (default: a new folder under runs/).")
@@ -47,7 +52,9 @@ def run(
         bool, typer.Option(help="Operator keys: l lock, m manual, r resume, a abort.")
     ] = False,
     gui: Annotated[bool, typer.Option(help="Open the simulator window.")] = False,
-    max_time: Annotated[float, typer.Option(help="Simulated time limit, in seconds.")] = 300.0,
+    max_time: Annotated[
+        float, typer.Option(help="Simulated time limit, in seconds (positive).")
+    ] = 300.0,
     trace: Annotated[
         Path | None, typer.Option(help="With --backend replay: the recorded trace to serve.")
     ] = None,
@@ -113,7 +120,12 @@ def validate(
     ] = False,
     set_: Annotated[
         list[str] | None,
-        typer.Option("--set", help="Override a procedure parameter: name=value (repeatable)."),
+        typer.Option(
+            "--set",
+            help="Override a procedure parameter: name=value (repeatable). Not name=value or "
+            "no such parameter: usage error (exit 2); a value the parameter refuses: "
+            "invalid (exit 1).",
+        ),
     ] = None,
 ) -> None:
     """Check procedures without running them; report every problem."""

@@ -510,7 +510,8 @@ CASES: list[Case] = [
     _set("run", "hold_time=[1 s", 1, ("hold_time",)),
     _set("validate", "hold_time=1 kg", 1, ("hold_time",), sub=True),
     _set("validate", "hold_time", 2, ("hold_time", "name=value")),
-    _set("validate", "nope=3", 1, ("steps.yaml", "nope", "override")),
+    _set("validate", "nope=3", 2, (f"steps.yaml:{_line(PROC, 'params:')}:", "nope", "override", "hold_time")),
+    _set("run", "nope=3", 2, (f"steps.yaml:{_line(PROC, 'params:')}:", "nope", "hold_time")),
     Case(
         "run-unknown-backend",
         ("run", "steps.yaml", "--backend", "gazebo", "--out", "out"),
@@ -617,40 +618,7 @@ CASES: list[Case] = [
 ]
 
 # Known defects in files this suite does not own: case id -> what is wrong and where.
-XFAIL: dict[str, str] = {
-    "run-proc-invalid": (
-        "suture run reports a procedure the automaton cannot compile without a line "
-        "(runtime/run.py load_plan: AutomatonError message has no file:line)"
-    ),
-    "ops-unknown-state": (
-        "an operator condition on a state the procedure lacks is accepted and never fires "
-        "(runtime/operator.py ScriptedOperator.check_steps checks resume steps only)"
-    ),
-    "ops-unknown-robot": (
-        "an operator event for a robot the scene lacks is accepted "
-        "(runtime/operator.py: robot names are not checked against the scene)"
-    ),
-    "ops-missing": (
-        "a missing --operator file exits 1, not 2 (I/O error) "
-        "(runtime/cli_run.py catches OperatorFileError as SutureError)"
-    ),
-    "set-run-hold_time=!!python/object/apply:os.system [x]": (
-        "a --set value that is not valid safe YAML escapes as a yaml ConstructorError "
-        "traceback (runtime/run.py _with_overrides: yaml.safe_load(value) unguarded)"
-    ),
-    "set-run-hold_time=[1 s": (
-        "a --set value that is not valid YAML escapes as a yaml ParserError traceback "
-        "(runtime/run.py _with_overrides: yaml.safe_load(value) unguarded)"
-    ),
-    "ops-deep-nesting": (
-        "a deeply nested operator file escapes as a RecursionError traceback "
-        "(runtime/operator.py load_operator_file catches yaml.YAMLError only)"
-    ),
-    "run-max-time-negative": (
-        "--max-time -1 is accepted: the run starts, fails at once and writes summary.json "
-        "(cli.py run / runtime/cli_run.py: no check that the limit is positive)"
-    ),
-}
+XFAIL: dict[str, str] = {}
 
 
 def _case_dir(tmp: Path, case: Case) -> Path:

@@ -1,9 +1,10 @@
 """The work behind ``suture plot`` and ``suture report`` (the CLI wrappers stay thin).
 
 Both return the exit code: 0 success; 1 a trace that is foreign or damaged; 2 usage
-or I/O errors (a missing trace, an output that cannot be written). The trace is
-read and every figure drawn before anything is written, so a bad trace leaves no
-partial output behind.
+or I/O errors (a missing trace, an output that cannot be written). The output
+location is checked first, before any figure is drawn; then the trace is read and
+every figure drawn before anything is written, so a bad trace leaves no partial
+output behind.
 """
 
 from __future__ import annotations
@@ -17,6 +18,32 @@ __all__ = ["plot_command", "report_command"]
 
 def _error(err: TextIO, message: str) -> None:
     err.write(f"error: {message}\n")
+
+
+def _unwritable(target: Path, *, folder: bool) -> str | None:
+    """Why ``target`` (a folder to fill, or a file) cannot be written, or None.
+
+    Checked before any figure is drawn: the nearest existing ancestor must be a
+    folder in which a file can be created (a probe file, removed at once).
+    """
+    import tempfile
+
+    if folder and target.exists() and not target.is_dir():
+        return f"{target}: not a folder; --out takes the folder to write the figures in"
+    if not folder and target.is_dir():
+        return f"{target}: is a folder; --out takes the HTML file to write"
+    here = target if folder else target.parent
+    here = here if str(here) else Path(".")
+    while not here.exists() and here != here.parent:
+        here = here.parent
+    if not here.is_dir():
+        return f"{target}: cannot write: {here} is not a folder"
+    try:
+        with tempfile.TemporaryFile(dir=here):
+            pass
+    except OSError as exc:
+        return f"{target}: cannot write: {exc.strerror or exc}"
+    return None
 
 
 def _load(trace: Path, err: TextIO) -> tuple[int, object | None]:
@@ -54,11 +81,15 @@ def plot_command(
 
     stdout = stdout or sys.stdout
     err = err or sys.stderr
+    target = out if out is not None else trace.parent / "figures"
+    problem = _unwritable(target, folder=True) if trace.is_file() else None
+    if problem is not None:
+        _error(err, problem)
+        return 2
     code, data = _load(trace, err)
     if not isinstance(data, TraceData):
         return code
     figures = render_figures(data)
-    target = out if out is not None else trace.parent / "figures"
     existed = target.exists()
     try:
         paths = write_figures(figures, target)
@@ -90,13 +121,14 @@ def report_command(
 
     stdout = stdout or sys.stdout
     err = err or sys.stderr
+    target = out if out is not None else trace.parent / "report.html"
+    problem = _unwritable(target, folder=False) if trace.is_file() else None
+    if problem is not None:
+        _error(err, problem)
+        return 2
     code, data = _load(trace, err)
     if not isinstance(data, TraceData):
         return code
-    target = out if out is not None else trace.parent / "report.html"
-    if target.is_dir():
-        _error(err, f"{target}: is a folder; --out takes the HTML file to write")
-        return 2
     page = build_report(data)
     try:
         path = write_report(page, target)

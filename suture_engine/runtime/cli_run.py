@@ -70,10 +70,17 @@ def run_command(
     """``suture run``: returns the exit code."""
     from backends.registry import UnknownBackend
     from suture_engine.errors import SutureError
+    from suture_engine.runtime.operator import OperatorFileMissing
     from suture_engine.runtime.run import ProcedureLoadError, SetOverrideError, run_procedure
 
     if not file.is_file():
         _error(f"{file}: no such file")
+        return 2
+    if not 0.0 < max_time < float("inf"):
+        _error(f"--max-time must be a positive, finite number of seconds, found {max_time:g}")
+        return 2
+    if operator is not None and not operator.is_file():
+        _error(f"--operator {operator}: {'a folder' if operator.is_dir() else 'no such file'}")
         return 2
 
     options = {}
@@ -123,7 +130,7 @@ def run_command(
         for problem in exc.problems:
             _error(problem)
         return 1
-    except (SetOverrideError, UnknownBackend) as exc:
+    except (SetOverrideError, UnknownBackend, OperatorFileMissing) as exc:
         _error(f"{exc.code}: {exc.message}")
         return 2
     except SutureError as exc:

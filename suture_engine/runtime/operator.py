@@ -46,7 +46,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, ClassVar, Literal
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from suture_engine.errors import SutureError
@@ -55,6 +54,7 @@ __all__ = [
     "InteractiveOperator",
     "OperatorEvent",
     "OperatorFileError",
+    "OperatorFileMissing",
     "ScriptedOperator",
     "load_operator_file",
 ]
@@ -64,6 +64,7 @@ _STIFFNESS = re.compile(r"^\s*([-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)\s*(N/m|N/mm)
 _TIME = re.compile(r"^\s*([-+]?\d+(?:\.\d*)?(?:[eE][-+]?\d+)?)\s*(s|ms|min)?\s*$")
 _SCALE = {"s": 1.0, "ms": 1e-3, "min": 60.0, None: 1.0}
 _WHEN = re.compile(r"^\s*(state|mode)\s*=\s*([A-Za-z0-9_\-./~]+)\s*$")
+_MODES = ("lock", "manual", "autonomous")
 
 
 class OperatorFileError(SutureError):
@@ -131,7 +132,8 @@ class _Event(BaseModel):
     @field_validator("when")
     @classmethod
     def _cond(cls, v: str | None) -> str | None:
-        if v is not None and not _WHEN.match(v):
+        m = _WHEN.match(v) if v is not None else None
+        if v is not None and (m is None or (m.group(1) == "mode" and m.group(2) not in _MODES)):
             raise ValueError(
                 f"expected 'state = NAME' or 'mode = lock|manual|autonomous', got {v!r}"
             )
@@ -191,61 +193,52 @@ class OperatorEvent:
     stiffness: float = 0.0
 
 
-def _node_at(
-    node: yaml.Node | None, path: Sequence[int | str], key_node: bool = False
-) -> yaml.Node | None:
-    for i, key in enumerate(path):
-        if isinstance(node, yaml.MappingNode):
-            last = key_node and i == len(path) - 1
-            node = next((k if last else v for k, v in node.value if k.value == key), node)
-            if node is None:
-                return None
-        elif isinstance(node, yaml.SequenceNode) and isinstance(key, int):
-            if key >= len(node.value):
-                return node
-            node = node.value[key]
-        else:
-            return node
-    return node
+class OperatorFileMissing(OperatorFileError):
+    """The operator file cannot be read (missing, a folder, unreadable): an I/O error."""
+
+    code = "operator-file-io"
 
 
-def load_operator_file(path: str | Path) -> list[tuple[_Event, OperatorEvent]]:
-    """Read and validate an operator file.
+_FIXED_STATES = ("idle", "lock", "manual")
+"""Automaton states every procedure has (besides its steps and terminals)."""
 
-    Raises:
-        OperatorFileError: unreadable, not YAML, or an invalid event (located).
-    """
+
+def _load(path: str | Path) -> tuple[list[tuple[_Event, OperatorEvent]], list[tuple[int, int]]]:
+    """The file's events and each event's (line, column), both 1-based."""
+    from suture_engine.language.source import load_yaml_text
+    from suture_engine.validation.problem import ProblemError
+
     file = str(path)
     try:
         text = Path(path).read_text(encoding="utf-8")
+    except UnicodeDecodeError as exc:
+        raise OperatorFileError(file, f"not UTF-8 text: {exc.reason}", 1, 1) from None
     except OSError as exc:
-        raise OperatorFileError(file, f"cannot read: {exc.strerror}") from None
+        raise OperatorFileMissing(file, f"cannot read: {exc.strerror or exc}") from None
     try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line, col = (mark.line + 1, mark.column + 1) if mark else (0, 0)
-        raise OperatorFileError(file, f"not valid YAML: {exc}", line, col) from None
-    if isinstance(data, list):
+        doc = load_yaml_text(text, file)
+    except ProblemError as exc:
+        p = exc.problems[0]
+        message = f"not valid YAML: {p.code}: {p.message}"
+        raise OperatorFileError(file, message, p.line or 1, p.column or 1, p.path) from None
+    data, source = doc.data, doc.source
+    listed = isinstance(data, list)  # a bare list of events
+    if listed:
         data = {"events": data}
-        root = yaml.MappingNode("tag:yaml.org,2002:map", [(yaml.ScalarNode("", "events"), root)])
+
+    def where(loc: Sequence[int | str]) -> tuple[int | str, ...]:
+        return tuple(loc[1:]) if listed and loc[:1] == ["events"] else tuple(loc)
+
     try:
         parsed = _File.model_validate(data)
     except ValidationError as exc:
         err = exc.errors()[0]
         loc = [p for p in err["loc"] if not (isinstance(p, str) and p.startswith("function-"))]
-        node = _node_at(root, loc, key_node=err["type"] == "extra_forbidden")
-        mark = node.start_mark if node is not None else None
+        key = source.keys.get(where(loc)) if err["type"] == "extra_forbidden" else None
+        line, col = key if key is not None else source.locate(where(loc))
         dotted = "".join(f"[{p}]" if isinstance(p, int) else f".{p}" for p in loc).lstrip(".")
-        raise OperatorFileError(
-            file,
-            err["msg"],
-            mark.line + 1 if mark else 0,
-            mark.column + 1 if mark else 0,
-            dotted,
-        ) from None
-    return [
+        raise OperatorFileError(file, err["msg"], line, col, dotted) from None
+    events = [
         (
             e,
             OperatorEvent(
@@ -254,6 +247,20 @@ def load_operator_file(path: str | Path) -> list[tuple[_Event, OperatorEvent]]:
         )
         for i, e in enumerate(parsed.events)
     ]
+    return events, [source.locate(where(["events", i])) for i in range(len(events))]
+
+
+def load_operator_file(path: str | Path) -> list[tuple[_Event, OperatorEvent]]:
+    """Read and validate an operator file.
+
+    The file is read with the procedure language's safe YAML loader (standard tags
+    only; nesting, aliases and size bounded; every node located).
+
+    Raises:
+        OperatorFileMissing: the file cannot be read (an I/O error).
+        OperatorFileError: not YAML, or an invalid event (located).
+    """
+    return _load(path)[0]
 
 
 class ScriptedOperator:
@@ -266,20 +273,66 @@ class ScriptedOperator:
     """
 
     def __init__(self, path: str | Path, dt: float = 1e-3) -> None:
-        self._events = load_operator_file(path)
+        self._file = str(path)
+        self._events, self._where = _load(path)
         self._fired = [False] * len(self._events)
         self._since: list[float | None] = [None] * len(self._events)
         self._half = dt / 2.0
 
     def check_steps(self, steps: Sequence[str]) -> None:
-        """Reject resume targets that are not steps of the procedure."""
-        for spec, ev in self._events:
+        """Reject resume targets that are not steps of the procedure (located)."""
+        self.check(steps)
+
+    def check(
+        self,
+        steps: Sequence[str],
+        terminals: Sequence[str] = (),
+        robots: Sequence[str] | None = None,
+    ) -> None:
+        """Check the events against the compiled procedure and the scene.
+
+        Args:
+            steps: the procedure's steps.
+            terminals: its terminal states.
+            robots: the scene's robots (None: not checked).
+
+        Raises:
+            OperatorFileError: a resume target that is not a step, a ``state =``
+                condition on a state the procedure lacks (it would never fire), or a
+                robot the scene lacks; located at the event.
+        """
+        from suture_engine.runtime.automaton import ABORTED, FAILED
+
+        states = {*steps, *terminals, *_FIXED_STATES, ABORTED, FAILED}
+        states |= {f"autonomous/{s}" for s in steps} | {f"autonomous/{s}~notbe" for s in steps}
+        for (spec, ev), (line, col) in zip(self._events, self._where, strict=True):
+            path = f"events[{ev.index}]"
             if ev.step is not None and ev.step not in steps:
                 raise OperatorFileError(
-                    "operator file",
-                    f"events[{ev.index}].step: no step {ev.step!r} in {list(steps)}",
+                    self._file,
+                    f"no step {ev.step!r} (steps: {', '.join(steps)})",
+                    line,
+                    col,
+                    f"{path}.step",
                 )
-            del spec
+            m = _WHEN.match(spec.when or "")
+            if m is not None and m.group(1) == "state" and m.group(2) not in states:
+                raise OperatorFileError(
+                    self._file,
+                    f"no state {m.group(2)!r}: the condition would never hold "
+                    f"(steps: {', '.join(steps)}; terminals: {', '.join(terminals) or '-'})",
+                    line,
+                    col,
+                    f"{path}.when",
+                )
+            if robots is not None and ev.robot is not None and ev.robot not in robots:
+                raise OperatorFileError(
+                    self._file,
+                    f"no robot {ev.robot!r} in the scene (robots: {', '.join(robots)})",
+                    line,
+                    col,
+                    f"{path}.robot",
+                )
 
     @property
     def exhausted(self) -> bool:

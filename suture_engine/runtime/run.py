@@ -11,7 +11,6 @@ commands and events with the recorded ones within explicit tolerances.
 from __future__ import annotations
 
 import os
-import re
 import tempfile
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import dataclass
@@ -60,20 +59,27 @@ class ProcedureLoadError(SutureError):
 
 
 class SetOverrideError(SutureError):
-    """A ``--set name=value`` that cannot apply.
+    """A ``--set`` that is a usage error: not ``name=value``, or a name the procedure lacks.
+
+    A value the parameter's declaration refuses is not this error: it is a located
+    :class:`ProcedureLoadError` (invalid input), as in ``suture validate --set``.
 
     Attributes:
         text: the option as given.
         available: the procedure's parameter names.
+        where: ``file:line:col`` of the procedure's ``params`` ("" when unknown).
     """
 
     code = "bad-set"
 
-    def __init__(self, text: str, message: str, available: Sequence[str] = ()) -> None:
+    def __init__(
+        self, text: str, message: str, available: Sequence[str] = (), where: str = ""
+    ) -> None:
         hint = f" (parameters: {', '.join(available)})" if available else ""
-        super().__init__(f"--set {text}: {message}{hint}")
+        super().__init__(f"{where + ': ' if where else ''}--set {text}: {message}{hint}")
         self.text = text
         self.available = list(available)
+        self.where = where
 
 
 @dataclass(frozen=True)
@@ -114,66 +120,73 @@ class ReplayResult:
     truncated: bool
 
 
-def _with_overrides(path: Path, sets: Sequence[str]) -> Any:
-    import yaml
-
-    from suture_engine.language.loader import load, load_text
+def _parse_sets(sets: Sequence[str]) -> dict[str, Any] | None:
+    """``--set`` options as parameter values, read exactly as ``suture validate`` reads them."""
+    from suture_engine.validation.report import parse_sets
 
     if not sets:
-        return load(path)
-
-    class _Loader(yaml.SafeLoader):
-        """YAML 1.2 booleans: ``on``/``off``/``yes``/``no`` stay strings (``on:`` keys)."""
-
-    _Loader.yaml_implicit_resolvers = {
-        k: [(tag, rx) for tag, rx in v if tag != "tag:yaml.org,2002:bool"]
-        for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()
-    }
-    _Loader.add_implicit_resolver(
-        "tag:yaml.org,2002:bool",
-        re.compile(r"^(?:true|True|TRUE|false|False|FALSE)$"),
-        list("tTfF"),
-    )
-    try:
-        data = yaml.load(path.read_text(encoding="utf-8"), Loader=_Loader)
-    except (OSError, yaml.YAMLError) as exc:
-        raise ProcedureLoadError([f"{path}: cannot read: {exc}"]) from None
-    params = data.get("params") if isinstance(data, dict) else None
-    names = sorted(params) if isinstance(params, dict) else []
+        return None
     for text in sets:
-        name, sep, value = text.partition("=")
-        name = name.strip()
-        if not sep or not name:
+        name, sep, _ = text.partition("=")
+        if not sep or not name.strip():
             raise SetOverrideError(text, "expected name=value")
-        if not isinstance(params, dict) or name not in params:
-            raise SetOverrideError(text, f"no parameter named {name!r}", names)
-        parsed = yaml.safe_load(value) if value.strip() else value
-        spec = params[name]
-        if isinstance(spec, dict):
-            spec["default"] = parsed
-        else:
-            params[name] = parsed
-    text = yaml.safe_dump(data, sort_keys=False)
-    return load_text(text, str(path.resolve()), base=path.resolve().parent)
+    try:
+        return parse_sets(sets)
+    except ValueError as exc:  # pragma: no cover - the loop above refuses the same texts
+        raise SetOverrideError(", ".join(sets), str(exc)) from None
+
+
+def _unknown_set(result: Any, sets: Sequence[str]) -> SetOverrideError | None:
+    """The first ``--set`` naming no parameter (the loader reports it at ``params``)."""
+    for p in result.problems:
+        if getattr(p, "code", "") != "unknown-param" or "(override)" not in p.message:
+            continue
+        name = str(p.path).removeprefix("params.")
+        text = next((t for t in sets if t.partition("=")[0].strip() == name), name)
+        names = list(result.procedure.params) if result.procedure is not None else []
+        where = f"{p.file}:{p.line}:{p.column}"
+        return SetOverrideError(text, f"no parameter named {name!r}", names, where)
+    return None
+
+
+def _compile_problems(file: Path, params: dict[str, Any] | None, message: str) -> list[str]:
+    """Located problems for a procedure that loads but does not compile.
+
+    The automaton's compiler knows state names, not lines: the validator's semantic
+    checks locate the same faults in the file. When they find none, the compiler's
+    message is given at the file.
+    """
+    from suture_engine.validation.checks import validate_file
+
+    located = [p.format() for p in validate_file(file, params=params) if p.line]
+    return located or [f"{file}: automaton-error: {message}"]
 
 
 def load_plan(path: str | Path, sets: Sequence[str] = ()) -> tuple[Any, Any]:
-    """Load and compile a procedure.
+    """Load and compile a procedure, with ``--set name=value`` overrides of its parameters.
+
+    The overrides are checked by the language's loader, exactly as ``suture validate
+    --set`` checks them: a value the declaration refuses is located at the parameter.
 
     Returns:
         (the loaded procedure, its :class:`~suture_engine.runtime.automaton.Plan`).
 
     Raises:
-        ProcedureLoadError: loading problems (located) or a compile error.
-        SetOverrideError: a bad ``--set``.
+        ProcedureLoadError: loading problems or a compile error (located).
+        SetOverrideError: a ``--set`` that is not ``name=value`` or names no parameter.
     """
+    from suture_engine.language.loader import load
     from suture_engine.runtime.automaton import AutomatonError
     from suture_engine.runtime.plan import compile_procedure
 
     file = Path(path)
     if not file.is_file():
         raise ProcedureLoadError([f"{path}: no such file"])
-    result = _with_overrides(file, sets)
+    params = _parse_sets(sets)
+    result = load(file, params=params)
+    unknown = _unknown_set(result, sets)
+    if unknown is not None:
+        raise unknown
     if result.problems or result.procedure is None:
         raise ProcedureLoadError(
             [p.format() if hasattr(p, "format") else str(p) for p in result.problems]
@@ -182,7 +195,7 @@ def load_plan(path: str | Path, sets: Sequence[str] = ()) -> tuple[Any, Any]:
     try:
         plan = compile_procedure(result.procedure)
     except AutomatonError as exc:
-        raise ProcedureLoadError([f"{path}: {exc.message}"]) from None
+        raise ProcedureLoadError(_compile_problems(file, params, exc.message)) from None
     return result.procedure, plan
 
 
@@ -270,7 +283,8 @@ def run_procedure(
         operator_file = declared_operator_file(path, proc.params)
     if operator_file is not None:
         operator = ScriptedOperator(operator_file)
-        operator.check_steps(list(plan.steps))
+        robots = list(proc.scene.robots) if proc.scene is not None else None
+        operator.check(list(plan.steps), list(plan.terminals), robots)
     options = dict(backend_options or {})
     if gui:
         options["gui"] = True

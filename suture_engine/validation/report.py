@@ -69,7 +69,8 @@ def validate_command(
         err: where usage errors go (default stderr).
 
     Returns:
-        0 when every file is valid, 1 when any is invalid, 2 for usage or I/O errors.
+        0 when every file is valid, 1 when any is invalid, 2 for usage or I/O errors
+        (a ``--set`` that is not ``name=value`` or names no parameter of a file).
     """
     from suture_engine.validation.checks import validate_file
 
@@ -99,7 +100,12 @@ def validate_command(
         out.write("\n")
     elif problems:
         err.write(f"{len(problems)} problem{'s' if len(problems) != 1 else ''} found\n")
-    if io_error:
+    # A --set naming no parameter is a usage error, as in `suture run` (a refused value is
+    # invalid input: exit 1); the loader reports it located, as "(override) ...".
+    bad_set = any(
+        p.code == "unknown-param" and p.message.startswith("(override)") for p in problems
+    )
+    if io_error or bad_set:
         return 2
     return 1 if problems else 0
 
