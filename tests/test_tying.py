@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from backends.pybullet.tying import JigTie, tie_overhand_on_jig
+from backends.pybullet.tying import JigTie, TieResult, tie_overhand_on_jig
 
 
 def _classify(points):  # type: ignore[no-untyped-def]
@@ -17,17 +17,17 @@ def _classify(points):  # type: ignore[no-untyped-def]
     return topology.classify_knot(points)
 
 
-def test_overhand_knot_tied_by_tool_motion_on_a_jig_holds_2n() -> None:
-    jig = JigTie()
-    result = tie_overhand_on_jig(jig)
+def _check_overhand(result: TieResult, jig: JigTie, chirality: str) -> None:
     start = _classify(result.start)
     final = _classify(result.final)
     # It starts as a straight, unknotted thread ...
     assert start.type == "unknot", start
     assert np.linalg.norm(result.start[-1] - result.start[0]) > 0.99 * jig.length
-    # ... and ends an overhand knot (trefoil, determinant 3, |v3| = 1).
+    # ... and ends an overhand knot (trefoil, determinant 3, |v3| = 1) of the chirality
+    # the moves give it.
     assert final.type.startswith("trefoil"), final
     assert final.determinant == 3 and abs(final.v3) == 1, final
+    assert final.chirality == chirality, final
     pull = result.pull
     assert pull.reached, pull
     # Pulled to 2 N; while the grips hold still the knot settles a little but never slips
@@ -39,8 +39,19 @@ def test_overhand_knot_tied_by_tool_motion_on_a_jig_holds_2n() -> None:
     assert pull.max_stretch < 0.05, pull
 
 
+def test_overhand_knot_tied_by_tool_motion_on_a_jig_holds_2n() -> None:
+    jig = JigTie()
+    _check_overhand(tie_overhand_on_jig(jig), jig, "right")
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("payout", [0.09, 0.1])
+def test_mirrored_moves_tie_the_mirror_overhand_knot() -> None:
+    jig = JigTie(mirror=True)
+    _check_overhand(tie_overhand_on_jig(jig), jig, "left")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("payout", [0.09, 0.105])
 def test_overhand_jig_tie_within_its_payout_window(payout: float) -> None:
     """The tail payout that keeps the wrap taut has a narrow working window (module doc)."""
     result = tie_overhand_on_jig(JigTie(payout=payout))
