@@ -372,20 +372,29 @@ class ConstrainedQP:
         self._qmax_l = lim.q_max.tolist()
         self._qd_l = lim.qd_max.tolist()
         self._q2_edge = math.pi / 2 - lim.q2_margin
+        self._box: tuple[list[float], list[float]] = ([], [])
 
     # ------------------------------------------------------------------ assembly
     def _joint_bounds(self, q: Array) -> None:
-        # Plain floats: four joints, a dozen comparisons; cheaper than ten numpy calls.
+        # Plain floats, unrolled over the four joints: cheaper than ten numpy calls.
         lim = self.limits
         h = lim.horizon
         inv_tau = 1.0 / lim.singular_time_constant
-        qs = q.tolist()
-        lo = [(a - b) / h for a, b in zip(self._qmin_l, qs, strict=True)]
-        hi = [(a - b) / h for a, b in zip(self._qmax_l, qs, strict=True)]
+        q0, q1, q2, q3 = q.tolist()
+        mn, mx = self._qmin_l, self._qmax_l
         edge = self._q2_edge
-        hi[1] = min(hi[1], (edge - qs[1]) * inv_tau)
-        lo[1] = max(lo[1], (-edge - qs[1]) * inv_tau)
-        lo[3] = max(lo[3], (lim.q4_min - qs[3]) * inv_tau)
+        lo = [
+            (mn[0] - q0) / h,
+            max((mn[1] - q1) / h, (-edge - q1) * inv_tau),
+            (mn[2] - q2) / h,
+            max((mn[3] - q3) / h, (lim.q4_min - q3) * inv_tau),
+        ]
+        hi = [
+            (mx[0] - q0) / h,
+            min((mx[1] - q1) / h, (edge - q1) * inv_tau),
+            (mx[2] - q2) / h,
+            (mx[3] - q3) / h,
+        ]
         for j, v in enumerate(self._qd_l):
             lo_j = min(max(lo[j], -v), v)
             # Outside a bound already: move back (at most at the speed limit), never an
@@ -394,6 +403,7 @@ class ConstrainedQP:
             lo[j] = lo_j
         self._l_qd[:] = lo
         self._u_qd[:] = hi
+        self._box = (lo, hi)  # the same values as floats, for _finish
 
     def solve(
         self,
@@ -501,7 +511,7 @@ class ConstrainedQP:
         if ok:
             # The joint box is hard: clip the solver's tolerance-level excursions
             # (eps_abs + eps_rel * |z|) so the command never leaves it.
-            lo, hi = self._l_qd.tolist(), self._u_qd.tolist()
+            lo, hi = self._box
             self._qdot[:] = [min(max(zl[j], lo[j]), hi[j]) for j in range(_N)]
             self.consecutive_failures = 0
             slack = max(map(abs, zl[_N:])) if self._m_soft else 0.0

@@ -104,9 +104,14 @@ class TensionEstimator:
         """Estimated tension [N] per robot."""
         out: dict[str, float] = {}
         for name, robot in obs.robots.items():
+            # Plain floats (the same IEEE operations as on numpy scalars, a fraction of
+            # the per-call cost).
+            fx, fy, fz = robot.base_wrench[:3].tolist()
             tare = self._tare.get(name)
-            f = robot.base_wrench[:3] if tare is None else robot.base_wrench[:3] - tare
-            out[name] = math.sqrt(float(f[0] * f[0] + f[1] * f[1] + f[2] * f[2]))
+            if tare is not None:
+                tx, ty, tz = tare.tolist()
+                fx, fy, fz = fx - tx, fy - ty, fz - tz
+            out[name] = math.sqrt(fx * fx + fy * fy + fz * fz)
         return out
 
 
