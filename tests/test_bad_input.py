@@ -149,6 +149,9 @@ def _set(cmd: str, value: str, code: int, needles: tuple[str, ...], sub: bool = 
     return Case(f"set-{cmd}-{value}", args, {}, code, needles, ("out",), sub)
 
 
+PARAMS_LINE = _line(PROC, "params:")
+"""The base procedure's ``params:`` line, where an unknown ``--set`` name is reported."""
+
 _BAD_MAGIC = b"\x89MCAP0\r\n" + b"\x00" * 64
 _TRACES: dict[str, bytes] = {
     "empty": b"",
@@ -510,8 +513,16 @@ CASES: list[Case] = [
     _set("run", "hold_time=[1 s", 1, ("hold_time",)),
     _set("validate", "hold_time=1 kg", 1, ("hold_time",), sub=True),
     _set("validate", "hold_time", 2, ("hold_time", "name=value")),
-    _set("validate", "nope=3", 2, (f"steps.yaml:{_line(PROC, 'params:')}:", "nope", "override", "hold_time")),
-    _set("run", "nope=3", 2, (f"steps.yaml:{_line(PROC, 'params:')}:", "nope", "hold_time")),
+    _set("validate", "nope=3", 2, (f"steps.yaml:{PARAMS_LINE}:", "nope", "override", "hold_time")),
+    _set("run", "nope=3", 2, (f"steps.yaml:{PARAMS_LINE}:", "nope", "hold_time")),
+    Case(
+        "set-run-error-elsewhere-keeps-its-line",
+        ("run", "p.yaml", "--set", "hold_time=1 s", "--out", "out"),
+        {"p.yaml": _sub(PROC, "duration: 300 ms", "duration: 300 kg")},
+        1,
+        (f"p.yaml:{_line(PROC, 'duration: 300 ms')}:", "tighten.with.duration"),
+        ("out",),
+    ),
     Case(
         "run-unknown-backend",
         ("run", "steps.yaml", "--backend", "gazebo", "--out", "out"),
@@ -708,3 +719,26 @@ def test_subprocess(case: Case, tmp_path: Path) -> None:
     )
     _check(case, tmp_path, proc.returncode, proc.stdout + proc.stderr)
     assert "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize(
+    "value", ["hold_time=3 N", "hold_time=10 s", "hold_time=[1 s", "hold_time=abc", "nope=3"]
+)
+def test_run_and_validate_agree_on_set(
+    value: str, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """One ``--set`` convention: the same exit code and the same location in both commands."""
+    import re
+
+    _case_dir(tmp_path, Case("agree", (), {}, 0, ()))
+    monkeypatch.chdir(tmp_path)
+    for key in ("COLUMNS", "NO_COLOR", "TERM"):
+        monkeypatch.setenv(key, ENV[key])
+    runner = CliRunner()
+    run = runner.invoke(app, ["run", "steps.yaml", "--set", value, "--out", "out"])
+    val = runner.invoke(app, ["validate", "steps.yaml", "--set", value])
+    assert run.exit_code == val.exit_code, run.output + val.output
+    assert run.exit_code == (2 if value.startswith("nope") else 1)
+    where = re.compile(r"steps\.yaml:\d+:\d+:")
+    assert where.findall(run.output) == where.findall(val.output) != [], run.output + val.output
+    assert not (tmp_path / "out").exists()

@@ -8,6 +8,7 @@ import pytest
 
 from suture_engine.runtime.operator import (
     OperatorFileError,
+    OperatorFileMissing,
     ScriptedOperator,
     load_operator_file,
 )
@@ -123,9 +124,99 @@ def test_not_yaml_and_missing_file_are_typed_errors(tmp_path: Path) -> None:
 
 
 def test_resume_target_must_be_a_step(tmp_path: Path) -> None:
-    op = ScriptedOperator(_write(tmp_path, "- {at: 1, do: resume, step: nowhere}\n"))
-    with pytest.raises(OperatorFileError, match="nowhere"):
+    file = _write(tmp_path, "- {at: 1, do: lock}\n- {at: 1, do: resume, step: nowhere}\n")
+    op = ScriptedOperator(file)
+    with pytest.raises(OperatorFileError, match="nowhere") as err:
         op.check_steps(["a", "b"])
+    assert (err.value.line, err.value.column, err.value.path) == (2, 3, "events[1].step")
+    assert str(err.value).startswith(f"{file}:2:3:")
+
+
+STEPS = ("prepare", "tighten")
+TERMINALS = ("finished",)
+ROBOTS = ("endobot_1", "endobot_2")
+
+
+@pytest.mark.parametrize(
+    "state",
+    [
+        "tighten",
+        "autonomous/tighten",
+        "autonomous/tighten~notbe",
+        "finished",
+        "lock",
+        "manual",
+        "idle",
+        "ABORTED",
+    ],
+)
+def test_conditions_on_states_the_automaton_has_are_accepted(tmp_path: Path, state: str) -> None:
+    op = ScriptedOperator(_write(tmp_path, f"events:\n  - {{when: state = {state}, do: lock}}\n"))
+    op.check(STEPS, TERMINALS, ROBOTS)
+
+
+@pytest.mark.parametrize(
+    ("event", "path", "words"),
+    [
+        ("{when: state = nowhere, do: lock}", "events[1].when", "never hold"),
+        ("{when: state = autonomous/nowhere, do: lock}", "events[1].when", "nowhere"),
+        ("{at: 1 s, do: lock, robot: endobot_7}", "events[1].robot", "endobot_7"),
+        ("{at: 1 s, do: push, robot: e3, velocity: [0, 0, 1]}", "events[1].robot", "e3"),
+        ("{at: 1 s, do: resume, step: nowhere}", "events[1].step", "nowhere"),
+    ],
+)
+def test_events_the_procedure_or_scene_cannot_honour_are_refused_located(
+    tmp_path: Path, event: str, path: str, words: str
+) -> None:
+    file = _write(tmp_path, f"events:\n  - {{at: 1 s, do: lock}}\n  - {event}\n")
+    op = ScriptedOperator(file)
+    with pytest.raises(OperatorFileError) as err:
+        op.check(STEPS, TERMINALS, ROBOTS)
+    assert (err.value.line, err.value.column, err.value.path) == (3, 5, path), str(err.value)
+    assert words in str(err.value)
+
+
+def test_robots_are_not_checked_without_a_scene(tmp_path: Path) -> None:
+    op = ScriptedOperator(_write(tmp_path, "- {at: 1 s, do: lock, robot: endobot_7}\n"))
+    op.check(STEPS, TERMINALS, None)
+    with pytest.raises(OperatorFileError, match="endobot_7"):
+        op.check(STEPS, TERMINALS, ROBOTS)
+
+
+def test_mode_condition_names_a_mode(tmp_path: Path) -> None:
+    with pytest.raises(OperatorFileError, match="mode = sleepy") as err:
+        load_operator_file(_write(tmp_path, "events:\n  - {when: mode = sleepy, do: lock}\n"))
+    assert err.value.line == 2
+    [(spec, _)] = load_operator_file(
+        _write(tmp_path, "events:\n  - {when: mode = manual, do: resume}\n")
+    )
+    assert spec.when == "mode = manual"
+
+
+@pytest.mark.parametrize(
+    ("text", "words"),
+    [
+        ("events: " + "[" * 3000 + "]" * 3000 + "\n", "too-deep"),
+        ("events: " + "[" * 100 + "]" * 100 + "\n", "too-deep"),
+        ("events: !!python/object/apply:os.system ['echo x']\n", "tag"),
+        ("a: &a [1, 2]\nevents: *a\nevents: []\n", "duplicate"),
+        ("events: [{at: 1 s, do: lock, at: 2 s}]\n", "duplicate"),
+    ],
+)
+def test_the_safe_loader_reads_operator_files(tmp_path: Path, text: str, words: str) -> None:
+    file = _write(tmp_path, text)
+    with pytest.raises(OperatorFileError) as err:
+        load_operator_file(file)
+    assert err.value.line >= 1 and err.value.column >= 1, str(err.value)
+    assert words in str(err.value)
+    assert not isinstance(err.value, OperatorFileMissing)
+
+
+def test_an_unreadable_file_is_an_io_error(tmp_path: Path) -> None:
+    with pytest.raises(OperatorFileMissing, match="cannot read"):
+        load_operator_file(tmp_path / "absent.yaml")
+    with pytest.raises(OperatorFileMissing):
+        load_operator_file(tmp_path)
 
 
 def test_interactive_keys_become_operator_events(monkeypatch: pytest.MonkeyPatch) -> None:
