@@ -35,8 +35,44 @@ def _stats(ns: list[int]) -> tuple[float, float]:
     return float(np.median(us)), float(np.percentile(us, 99))
 
 
+STAGES: dict[str, list[int]] = {}
+"""CPU time per stage of the tick in the last replay with ``stages=True`` [ns]."""
+
+
+def _timed(fn: Any, bucket: list[int]) -> Any:
+    clock = time.thread_time_ns
+
+    def wrapper(*args: Any, **kwargs: Any) -> Any:
+        t0 = clock()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            bucket.append(clock() - t0)
+
+    return wrapper
+
+
+def _instrument(interp: Any, skill: Any) -> None:
+    """Time the tick's stages (instance attributes shadow the methods; a separate pass)."""
+    targets = [
+        ("observe (backend + washout filter)", interp, "_observe"),
+        ("tension estimate", interp.tension, "estimate"),
+        ("controller (PD + gravity + friction)", interp.controller, "torque"),
+        ("monitor", interp.monitor, "check"),
+        ("trace: per-tick channels", interp.recorder, "tick"),
+        ("trace: /qp channel", interp.recorder, "qp"),
+        ("skill: whole step", skill, "step"),
+        ("skill: QP solve (assembly + OSQP + result)", skill._qp, "solve"),
+        ("skill: QP assembly in Python", skill._qp, "_assemble"),
+        ("skill: QP result (clip, active rows)", skill._qp, "_finish"),
+    ]
+    for label, obj, name in targets:
+        STAGES[label] = []
+        setattr(obj, name, _timed(getattr(obj, name), STAGES[label]))
+
+
 def _replay(
-    trace: Path, out: Path | None, cvx: Any = None
+    trace: Path, out: Path | None, cvx: Any = None, stages: bool = False
 ) -> tuple[list[int], list[int], list[int]]:
     from backends.replay import ReplayBackend
     from suture_engine.runtime.interpreter import Interpreter
@@ -88,7 +124,10 @@ def _replay(
         active = interp.automaton.step_name == "insert"
         skill = interp.automaton.active_skill
         if skill is not None and not hasattr(skill, "_timed"):
-            skill.step = timed(skill.step)
+            if stages and active:
+                _instrument(interp, skill)
+            else:
+                skill.step = timed(skill.step)
             skill._timed = True
         c0 = cpu_clock()
         t0 = clock()
@@ -147,6 +186,7 @@ def main() -> None:
         with_trace, with_trace_cpu, _ = _replay(trace, Path(tmp) / "replay.mcap")
         engine, engine_cpu, _ = _replay(trace, None)
         skill_cpu = list(SKILL_NS)
+        _replay(trace, Path(tmp) / "stages.mcap", stages=True)
         try:
             _, _, cvx = _replay(trace, None, _cvxpy_twin())
         except ImportError:
@@ -163,6 +203,12 @@ def main() -> None:
         print(f"  {label:19s}: median {m:7.1f} us   p99 {p:7.1f} us")
     m, p = _stats(skill_cpu)
     print(f"  of which skill.step: median {m:7.1f} us   p99 {p:7.1f} us (move-constrained + QP)")
+    print("CPU time per stage, a separate instrumented pass with the trace on (sums of")
+    print("the calls in one tick are not shown; each line is per call):")
+    for label, ns in STAGES.items():
+        if ns:
+            m, p = _stats(ns)
+            print(f"  {label:44s}: median {m:7.1f} us   p99 {p:7.1f} us   ({len(ns)} calls)")
     if cvx:
         m_cv, p_cv = _stats(cvx)
         print(f"  cvxpy QP alone     : median {m_cv:7.1f} us   p99 {p_cv:7.1f} us")
