@@ -239,6 +239,13 @@ def _trace_cases() -> list[Case]:
         Case("trace-missing", ("trace", "nope.mcap"), {}, 2, ("nope.mcap",)),
         Case("replay-missing", ("replay", "nope.mcap"), {}, 2, ("nope.mcap",)),
         Case(
+            "replay-set-unknown",
+            ("replay", "good.mcap", "--procedure", "steps.yaml", "--set", "nope=1"),
+            {},
+            2,
+            (f"steps.yaml:{PARAMS_LINE}:", "nope", "hold_time"),
+        ),
+        Case(
             "plot-missing", ("plot", "nope.mcap", "--out", "figs"), {}, 2, ("nope.mcap",), ("figs",)
         ),
         Case(

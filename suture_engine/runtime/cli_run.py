@@ -216,7 +216,7 @@ def replay_command(
     from rich.console import Console
 
     from suture_engine.errors import SutureError
-    from suture_engine.runtime.run import ProcedureLoadError, replay_trace
+    from suture_engine.runtime.run import ProcedureLoadError, SetOverrideError, replay_trace
 
     if not trace.is_file():
         _error(f"{trace}: no such file")
@@ -227,6 +227,9 @@ def replay_command(
         for problem in exc.problems:
             _error(problem)
         return 1
+    except SetOverrideError as exc:
+        _error(f"{exc.code}: {exc.message}")
+        return 2
     except SutureError as exc:
         _error(f"{exc.code}: {exc.message}")
         return 1
