@@ -3,7 +3,7 @@
 The knots here are laid loosely along hand-built knotted curves (tied by construction), then
 TIGHTENED by two graspers pulling the ends to 2 N; the tests check the knot survives, holds
 the tension, keeps its type (by the knot classifier) and that the thread stretches < 5 %.
-Tying from a straight thread by tool motion is not covered.
+Tying from a straight thread by tool motion is in ``tests/test_tying.py``.
 """
 
 from __future__ import annotations

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from backends.pybullet.tying import JigTie, TieResult, tie_overhand_on_jig
+from backends.pybullet.tying import JigTie, TieResult, tie_on_jig, tie_overhand_on_jig
 
 
 def _classify(points):  # type: ignore[no-untyped-def]
@@ -58,3 +58,30 @@ def test_overhand_jig_tie_within_its_payout_window(payout: float) -> None:
     final = _classify(result.final)
     assert final.type.startswith("trefoil"), final
     assert result.pull.reached and result.pull.max_stretch < 0.05, result.pull
+
+
+_TWO_THROWS = JigTie(length=0.5, segments=100, first_offset=0.16)
+"""Two throws need a longer thread: 0.5 m, 100 segments, the first jig 0.16 m in."""
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    ("throws", "expected", "v3"),
+    [((False, True), "square", 0), ((False, False), "granny", 2)],
+)
+def test_two_throws_tied_by_tool_motion_classify_square_or_granny(
+    throws: tuple[bool, bool], expected: str, v3: int
+) -> None:
+    """Two overhand throws, the second by the other end: opposite handedness gives the
+    square knot's type (trefoil # mirror trefoil), like handedness the granny's. The two
+    throws end up apart along the thread (the moves do not stack them)."""
+    result = tie_on_jig(throws, _TWO_THROWS)
+    assert _classify(result.start).type == "unknot"
+    assert _classify(result.threaded[0]).type.startswith("trefoil")
+    final = _classify(result.final)
+    assert final.type.startswith(expected), final
+    assert final.determinant == 9 and final.v2 == 2 and abs(final.v3) == v3, final
+    pull = result.pull
+    assert pull.reached and pull.min_hold_force > 1.5 and pull.settled_force > 1.6, pull
+    assert result.span < 0.97 * _TWO_THROWS.length
+    assert pull.max_stretch < 0.05, pull
