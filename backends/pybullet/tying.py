@@ -1,4 +1,4 @@
-"""Tie an overhand knot by tool motion on a peg jig (scripted, hand-written trajectories).
+"""Tie knots by tool motion on a peg jig (scripted, hand-written trajectories).
 
 The thread starts straight; nothing is laid knotted. Two graspers hold its ends; four fixed
 vertical pegs (a jig, static capsules) stand beside it. The moves, all hand-written:
@@ -21,11 +21,20 @@ thread's plane) ties the mirror-image knot: right-handed trefoil (v3 = +1) by de
 left-handed (v3 = -1) mirrored.
 
 Measured (0.3 m thread, 60 segments, 40 mm pegs): payouts of 0.09, 0.095, 0.10 and
-0.105 m tie a trefoil, 0.085 m does not (the thread stays slack, the end's pass misses the
-loop, unknot). With 16 mm pegs the end's dips above and below the loop dragged the loop off
-the pegs in the mirrored tie, and 0.07 m or 0.12 m of payout did not wrap the pegs. This
-is a scripted demonstration of tying by motion in this simulator, tuned by hand, not a
-robust tying controller.
+0.105 m tie a trefoil, 0.085 m does not (unknot). With the first, 16 mm pegs, 0.07 and
+0.12 m gave unknots (at 0.12 m the rendered frames show the loop formed beside the jig,
+not around it) and the mirrored tie failed (the end's rise lifted the loop off the pegs).
+After the 2 N pull the grips hold still and the knot settles: the grip force over the last
+half second is 1.7-1.9 N. This is a scripted demonstration of tying by motion in this
+simulator, tuned by hand, not a robust tying controller.
+
+**Two throws** (:func:`tie_on_jig`): after the first throw is snugged, the left-hand end
+ties the second on a new jig with the same moves reflected in x. On a 0.5 m thread (100
+segments) opposite throws classify as the square knot (determinant 9, v2 = 2, v3 = 0)
+and like throws as the granny (v3 = +2), both pulled to 2 N and held. The two throws end up about
+0.3 m apart along the thread: the knot type is that of a square (granny) knot, trefoil #
+mirror trefoil (trefoil # trefoil), but the throws are not stacked on each other as in a
+surgeon's tie.
 
 Everything read from the thread here (the centerlines handed back) is ground truth for
 evaluation; no move depends on it.
