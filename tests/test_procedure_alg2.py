@@ -106,3 +106,24 @@ def test_tighten_and_slide_timeouts_cover_their_moves() -> None:
     # the slide starts where the loop over the hook ends: 8 mm off the stem, 10 mm up it
     longest = float(np.linalg.norm(np.asarray(slide.params.target))) + 8e-3 + 10e-3
     assert slide.timeout >= _min_jerk_duration(longest, slide.params.speed) + 1.0
+
+
+def _skills(proc: Any) -> list[str]:
+    out: list[str] = []
+    for state in proc.states.values():
+        if state.skill is not None:
+            out.append(state.skill)
+        if state.use is not None:
+            out.extend(_skills(state.use))
+    return out
+
+
+@pytest.mark.parametrize("algorithm", [1, 2, 3])
+def test_the_second_throw_of_a_square_knot_makes_no_second_stitch(algorithm: int) -> None:
+    proc: Any = load_procedure(
+        ROOT / "procedures" / "square-knot.yaml", params={"algorithm": algorithm}
+    )
+    first = proc.states["simple-knot"].use.states["stitch"].use
+    second = proc.states["mirrored-knot"].use.states["stitch"].use
+    assert "pass-needle" in _skills(first)
+    assert _skills(second) == []
