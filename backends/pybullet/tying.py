@@ -25,8 +25,9 @@ Measured (0.3 m thread, 60 segments, 40 mm pegs): payouts of 0.09, 0.095, 0.10 a
 0.12 m gave unknots (at 0.12 m the rendered frames show the loop formed beside the jig,
 not around it) and the mirrored tie failed (the end's rise lifted the loop off the pegs).
 After the 2 N pull the grips hold still and the knot settles: the grip force over the last
-half second is 1.7-1.9 N. This is a scripted demonstration of tying by motion in this
-simulator, tuned by hand, not a robust tying controller.
+half second is 1.7-2.5 N (``benchmarks/tie_jig.py``; the mirrored knot's rose). This is a
+scripted demonstration of tying by motion in this simulator, tuned by hand, not a robust
+tying controller.
 
 **Two throws** (:func:`tie_on_jig`): after the first throw is snugged, the left-hand end
 ties the second on a new jig with the same moves reflected in x. On a 0.5 m thread (100
