@@ -57,8 +57,9 @@ class WrapParams(SkillParams):
 class Wrap(Skill):
     """Carry the suture over the other tool in ``direction`` (see the module docstring).
 
-    Two phases, each a minimum-jerk path through the inverse kinematics: the
-    approach to the arc's start (peak tip speed ``speed``, at least
+    Three phases, each a rest-to-rest minimum-jerk path through the inverse
+    kinematics: the two straight legs of the approach to the arc's start, via the
+    waypoint over the other tool (peak tip speed ``speed``, at least
     :attr:`APPROACH_SPEED`), then at peak tip speed ``speed`` the arc of
     pi (2 turns - 1) [rad] about the other shaft. The roll is kept. Fails when a
     path leaves the joint limits, when the carrying robot is the one wrapped
@@ -116,12 +117,23 @@ class Wrap(Skill):
         assert isinstance(p, WrapParams)
         return math.pi * (2 * p.turns - 1)
 
+    def _segment(self, a: Any, b: Any, roll: float) -> Any:
+        """``s -> q``: joints along the straight tip segment from ``a`` to ``b`` [m]."""
+        from skills.tool_path import ik_world
+
+        def joints_at(s: float) -> Any:
+            return ik_world(a + s * (b - a), roll, self._base)
+
+        return joints_at
+
     def start(self, ctx: Any) -> None:
         """Locate the other tool's shaft and plan the approach and the loop.
 
         Args:
             ctx: the :class:`suture_engine.runtime.context.SkillContext`.
         """
+
+        import itertools
 
         import numpy as np
 
@@ -153,28 +165,24 @@ class Wrap(Skill):
         self._e1 = over / np.linalg.norm(over)
         self._e2 = np.cross(self.axis, self._e1)
         # approach through a waypoint over the other tool (2 radii towards O), so the
-        # straight legs stay on this robot's side of the other shaft
+        # straight legs stay on this robot's side of the other shaft; each leg is
+        # rest-to-rest, so the tip does not turn the corner at speed (an impulsive
+        # acceleration the base force sensor reads as a tension spike)
         legs = [tip, self.centre + 2.0 * p.radius * self._e1, self.loop_point(0.0)]
-        first = float(np.linalg.norm(legs[1] - legs[0]))
-        total = first + float(np.linalg.norm(legs[2] - legs[1]))
-
-        def approach_point(s: float) -> Any:
-            d = s * total
-            if d <= first and first > 0.0:
-                return legs[0] + d / first * (legs[1] - legs[0])
-            rest = total - first
-            frac = 1.0 if rest <= 0.0 else (d - first) / rest
-            return legs[1] + frac * (legs[2] - legs[1])
-
-        approach = ToolPath(
-            lambda s: ik_world(approach_point(s), roll, self._base),
-            duration_for(total, max(p.speed, self.APPROACH_SPEED)),
-        )
+        approach_speed = max(p.speed, self.APPROACH_SPEED)
+        self._paths = []
+        for a, b in itertools.pairwise(legs):
+            length = float(np.linalg.norm(b - a))
+            if length < 1e-6:
+                continue
+            self._paths.append(
+                ToolPath(self._segment(a, b, roll), duration_for(length, approach_speed))
+            )
         loop = ToolPath(
             lambda s: ik_world(self.loop_point(s), roll, self._base),
             duration_for(self.sweep * p.radius, p.speed),
         )
-        self._paths = [approach, loop]
+        self._paths.append(loop)
         self._goal = self.loop_point(1.0)
         if self._robot == other:
             self._failure = "a tool cannot wrap around itself"
@@ -212,11 +220,13 @@ class Wrap(Skill):
             q = obs.robots[self._robot].q
             return StepResult(hold_command(self._robot, q), SkillStatus.FAILURE, self._failure)
         t = obs.t - self._t0
-        first, loop = self._paths
-        if t < first.duration:
-            q, qd, _ = first.sample(t)
-            return StepResult(Command({self._robot: RobotCommand.position(q, qd)}))
-        t_loop = t - first.duration
+        *approach, loop = self._paths
+        for leg in approach:
+            if t < leg.duration:
+                q, qd, _ = leg.sample(t)
+                return StepResult(Command({self._robot: RobotCommand.position(q, qd)}))
+            t -= leg.duration
+        t_loop = t
         q, qd, done = loop.sample(t_loop)
         cmd = Command({self._robot: RobotCommand.position(q, qd)})
         if not done:

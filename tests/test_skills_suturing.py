@@ -418,6 +418,34 @@ def test_wrap_tolerance_decides_a_steady_tracking_error(
     assert result.status.name.lower() == expected, result.message
 
 
+@pytest.mark.parametrize("direction", ["front-to-back", "back-to-front"])
+def test_wrap_turns_corners_only_at_rest(scene: Any, direction: str) -> None:
+    """Where the tip's direction of motion turns sharply (the approach's waypoint and
+    the start of the arc), its speed is near zero: no impulsive acceleration."""
+    qs, tools = start_pose(scene)
+    run = Run(
+        Wrap({"robot": "stitcher", "around": "grasper", "direction": direction}),
+        scene,
+        qs,
+        tools,
+        max_t=60.0,
+    )
+    assert run.status is SkillStatus.SUCCESS, run.message
+    tips = np.array([tip(scene, "endobot_1", q) for q in run.q("endobot_1")])
+    v = np.diff(tips, axis=0) / DT
+    speed = np.linalg.norm(v, axis=1)
+    moving = speed > 1e-9
+
+    for k in range(1, len(v)):
+        if moving[k] and moving[k - 1]:
+            cos = float(v[k] @ v[k - 1]) / (speed[k] * speed[k - 1])
+            if cos < math.cos(math.radians(20.0)):
+                assert max(speed[k], speed[k - 1]) < 1e-3
+    # the motion pauses between the legs (rest-to-rest), at least twice
+    stops = np.flatnonzero(np.diff(moving.astype(int)) == 1)
+    assert len(stops) >= 2
+
+
 def test_wrap_fails_around_itself(scene: Any) -> None:
     qs, tools = start_pose(scene)
     run = Run(Wrap({"robot": "stitcher", "around": "stitcher"}), scene, qs, tools)
