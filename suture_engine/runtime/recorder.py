@@ -26,10 +26,17 @@ _EVENT_KIND = {"planned": "planned", "unpredictable": "unpredictable", "operator
 
 
 def _floats(values: Any) -> list[float]:
-    if isinstance(values, np.ndarray):
-        out: list[float] = values.astype(np.float64, copy=False).tolist()
+    if type(values) is np.ndarray:
+        if values.dtype is not _F64:
+            values = values.astype(np.float64)
+        out: list[float] = values.tolist()
         return out
+    if isinstance(values, np.ndarray):
+        return values.astype(np.float64).tolist()  # type: ignore[no-any-return]
     return [float(v) for v in values]
+
+
+_F64 = np.dtype(np.float64)
 
 
 class Recorder:
