@@ -103,8 +103,10 @@ def test_tighten_and_slide_timeouts_cover_their_moves() -> None:
     d = float(np.linalg.norm(tighten.params.target))
     assert tighten.timeout >= _min_jerk_duration(d, tighten.params.speed) + 1.0
     slide = proc.states["slide-to-tip"]
-    # the slide starts where the loop over the hook ends: 8 mm off the stem, 10 mm up it
-    longest = float(np.linalg.norm(np.asarray(slide.params.target))) + 8e-3 + 10e-3
+    # the slide starts where the loop over the hook ends: a loop radius off the stem,
+    # 10 mm up it
+    radius = proc.states["over-hook"].params.radius
+    longest = float(np.linalg.norm(np.asarray(slide.params.target))) + radius + 10e-3
     assert slide.timeout >= _min_jerk_duration(longest, slide.params.speed) + 1.0
 
 
