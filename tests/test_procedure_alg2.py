@@ -129,3 +129,30 @@ def test_the_second_throw_of_a_square_knot_makes_no_second_stitch(algorithm: int
     second = proc.states["mirrored-knot"].use.states["stitch"].use
     assert "pass-needle" in _skills(first)
     assert _skills(second) == []
+
+
+NOT_REPEATABLE = {"wrap", "rotate-about", "pass-jaws", "pass-needle"}
+"""Skills whose repetition changes the result (another loop, another roll or half
+turn, the needle passed back, another bite); re-running them is no retry."""
+
+
+@pytest.mark.parametrize("algorithm", [1, 2, 3])
+def test_no_retry_re_runs_a_step_that_cannot_be_repeated(algorithm: int) -> None:
+    proc: Any = load_procedure(ROOT / "procedures" / f"knot-algorithm-{algorithm}.yaml")
+    previous = {
+        state.on["done"]: name
+        for name, state in proc.states.items()
+        if isinstance(state.on.get("done"), str)
+    }
+    checked = 0
+    for name, state in proc.states.items():
+        policy = state.on.get("failed")
+        before = previous.get(name)
+        if policy is None or before is None:
+            continue
+        prev = proc.states[before]
+        skills = _skills(prev.use) if prev.use is not None else [prev.skill]
+        if NOT_REPEATABLE & set(skills):
+            checked += 1
+            assert policy.retry == 0, f"{name}: a retry would re-run {before} ({skills})"
+    assert checked >= 2
