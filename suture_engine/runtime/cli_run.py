@@ -42,6 +42,11 @@ def _print_summary(summary: object, out_dir: Path | None) -> None:
         ("retries", str(getattr(s, "retries", 0))),
         ("operator events", str(getattr(s, "operator_events", 0))),
     ]
+    knot = getattr(s, "knot", None)
+    if knot is not None and hasattr(knot, "get") and knot.get("type"):
+        rows.append(("knot (ground truth)", str(knot["type"])))
+    else:
+        rows.append(("knot", "not checked: this backend simulates no thread"))
     stopped = getattr(s, "metrics", {}).get("stopped")
     if stopped:
         rows.append(("stopped", str(stopped)))
