@@ -24,7 +24,8 @@ Example:
 from __future__ import annotations
 
 import os
-from collections.abc import Mapping
+import struct
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Literal
@@ -168,6 +169,7 @@ class TraceWriter:
             compression=kind,
             index_types=index,
         )
+        self._add = _message_adder(self._mcap)
         self._schema_ids: dict[str, int] = {}
         self._channel_ids: dict[str, tuple[int, channels.ChannelSpec]] = {}
         self._validators: dict[str, Any] = {}
@@ -243,9 +245,7 @@ class TraceWriter:
                     self.flush()  # the chunk holds whole time steps
                     self._last_flush_ns = time_ns
             self._last_time_ns = time_ns
-            self._mcap.add_message(
-                channel_id, log_time=time_ns, data=data, publish_time=time_ns, sequence=0
-            )
+            self._add(channel_id, time_ns, data)
             self.message_count += 1
             self._pending += 1
             self._chunk_bytes += len(data) + _MESSAGE_OVERHEAD
@@ -332,6 +332,69 @@ class TraceWriter:
             raise TraceMessageError(
                 str(self.path), topic, f"does not match {spec.schema_name}: {exc.message}"
             ) from exc
+
+
+_MESSAGE_HEADER = struct.Struct("<BQHIQQ")
+"""An MCAP Message record's opcode, length, channel id, sequence, log and publish time."""
+
+
+def _message_adder(writer: Any) -> Callable[[int, int, bytes], None]:
+    """``writer.add_message(channel, time, data)`` for a sequence-0 message logged and
+    published at the same time, the same bytes and bookkeeping at a fraction of the cost.
+
+    mcap 1.6's ``Writer.add_message`` spends ~10 us a message in Python (a Message
+    dataclass, a dozen small ``struct.pack`` and buffer writes); a 1 kHz tick writes about
+    eight. The fast path does the same updates (statistics, the chunk's message index,
+    the record) in one pack. It relies on mcap 1.6's writer internals, so it is used only
+    when they are all there and the writer never closes a chunk itself (this module's
+    ``chunk_size=1 << 62``: chunks close in ``flush``); otherwise, the public call.
+    ``tests/test_trace_writer_fast.py`` checks both give the same file, byte for byte.
+    """
+
+    def public(channel_id: int, time_ns: int, data: bytes) -> None:
+        writer.add_message(channel_id, log_time=time_ns, data=data, publish_time=time_ns)
+
+    try:
+        from mcap.records import MessageIndex
+
+        builder = writer._Writer__chunk_builder
+        stats = writer._Writer__statistics
+        chunk_size = writer._Writer__chunk_size
+        builder.record_writer._buffer.write  # noqa: B018 - the attributes used below
+        builder.message_indices, builder.num_messages, stats.channel_message_counts  # noqa: B018
+    except (AttributeError, ImportError):
+        return public
+    if builder is None or chunk_size < 1 << 62:
+        return public
+    counts = stats.channel_message_counts
+    indices = builder.message_indices
+    pack = _MESSAGE_HEADER.pack
+
+    def fast(channel_id: int, time_ns: int, data: bytes) -> None:
+        if stats.message_count == 0:
+            stats.message_start_time = time_ns
+        elif time_ns < stats.message_start_time:
+            stats.message_start_time = time_ns
+        if time_ns > stats.message_end_time:
+            stats.message_end_time = time_ns
+        counts[channel_id] += 1
+        stats.message_count += 1
+        if builder.num_messages == 0:
+            builder.message_start_time = time_ns
+        elif time_ns < builder.message_start_time:
+            builder.message_start_time = time_ns
+        if time_ns > builder.message_end_time:
+            builder.message_end_time = time_ns
+        buf = builder.record_writer._buffer
+        index = indices.get(channel_id)
+        if not index:
+            index = indices[channel_id] = MessageIndex(channel_id=channel_id, records=[])
+        index.records.append((time_ns, buf.tell()))
+        builder.num_messages += 1
+        buf.write(pack(0x05, 22 + len(data), channel_id, 0, time_ns, time_ns))
+        buf.write(data)
+
+    return fast
 
 
 def _close_quietly(f: Any) -> None:
