@@ -35,6 +35,9 @@ def _stats(ns: list[int]) -> tuple[float, float]:
     return float(np.median(us)), float(np.percentile(us, 99))
 
 
+REPEATS = 3
+"""Interleaved passes with and without the trace; the best (lowest CPU median) is shown."""
+
 STAGES: dict[str, list[int]] = {}
 """CPU time per stage of the tick in the last replay with ``stages=True`` [ns]."""
 
@@ -183,9 +186,15 @@ def main() -> None:
         rec = run_procedure(PROCEDURE, backend="pybullet", out=Path(tmp) / "rec")
         trace = rec.trace
         _replay(trace, None)  # warm-up: imports, first-call costs
-        with_trace, with_trace_cpu, _ = _replay(trace, Path(tmp) / "replay.mcap")
-        engine, engine_cpu, _ = _replay(trace, None)
-        skill_cpu = list(SKILL_NS)
+        # The pair of passes is repeated (interleaved) and the pass with the lowest CPU
+        # median kept: on a shared machine one pass can run at half speed throughout.
+        runs_tr, runs_en = [], []
+        for _ in range(REPEATS):
+            runs_tr.append(_replay(trace, Path(tmp) / "replay.mcap"))
+            runs_en.append((*_replay(trace, None)[:2], list(SKILL_NS)))
+        with_trace, with_trace_cpu, _ = min(runs_tr, key=lambda r: _stats(r[1])[0])
+        engine, engine_cpu, skill_cpu = min(runs_en, key=lambda r: _stats(r[1])[0])
+        spread = [_stats(r[1])[0] for r in runs_tr], [_stats(r[1])[0] for r in runs_en]
         _replay(trace, Path(tmp) / "stages.mcap", stages=True)
         try:
             _, _, cvx = _replay(trace, None, _cvxpy_twin())
@@ -194,6 +203,9 @@ def main() -> None:
     m_tr, p_tr = _stats(with_trace)
     m_en, p_en = _stats(engine)
     print(f"engine tick on the replay backend, move-constrained active ({len(engine)} ticks)")
+    print(f"best of {REPEATS} interleaved passes; CPU medians of every pass [us]:")
+    print("  with trace: " + ", ".join(f"{v:.1f}" for v in spread[0]))
+    print("  trace off : " + ", ".join(f"{v:.1f}" for v in spread[1]))
     print("wall clock:")
     print(f"  with trace writing : median {m_tr:7.1f} us   p99 {p_tr:7.1f} us")
     print(f"  trace off          : median {m_en:7.1f} us   p99 {p_en:7.1f} us")
