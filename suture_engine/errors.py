@@ -8,7 +8,7 @@ that the CLI can print a located, human message and never a traceback.
 
 from __future__ import annotations
 
-__all__ = ["SutureError"]
+__all__ = ["InvalidValue", "SutureError"]
 
 
 class SutureError(Exception):
@@ -24,3 +24,21 @@ class SutureError(Exception):
     def __init__(self, message: str) -> None:
         super().__init__(message)
         self.message = message
+
+
+class InvalidValue(SutureError):
+    """An argument outside what a function or an object accepts.
+
+    Attributes:
+        name: the offending argument.
+        value: its value.
+        expected: what was expected, in words ("> 0", "a finite number").
+    """
+
+    code = "bad-value"
+
+    def __init__(self, name: str, value: object, expected: str) -> None:
+        super().__init__(f"{name} must be {expected}, found {value!r}")
+        self.name = name
+        self.value = value
+        self.expected = expected

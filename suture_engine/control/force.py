@@ -30,25 +30,18 @@ from __future__ import annotations
 
 import math
 
-from suture_engine.errors import SutureError
+from suture_engine.errors import InvalidValue
 
 __all__ = ["ForceGainError", "integral_gain_bound"]
 
 
-class ForceGainError(SutureError):
+class ForceGainError(InvalidValue):
     """Invalid plant or gain values given to a stability bound.
 
     Attributes:
         name: the offending argument.
         value: its value.
     """
-
-    code = "bad-value"
-
-    def __init__(self, name: str, value: float, expected: str) -> None:
-        super().__init__(f"{name} must be {expected}, found {value!r}")
-        self.name = name
-        self.value = value
 
 
 def integral_gain_bound(

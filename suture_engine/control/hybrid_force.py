@@ -39,7 +39,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from suture_engine.errors import SutureError
+from suture_engine.errors import InvalidValue
 from suture_engine.robot import endobot
 from suture_engine.robot.params import EndoBotParams, FrictionParams
 
@@ -56,20 +56,13 @@ FloatArray = NDArray[np.float64]
 Vec = Sequence[float] | FloatArray
 
 
-class ForceGainsError(SutureError):
+class ForceGainsError(InvalidValue):
     """A force controller built with impossible gains or limits.
 
     Attributes:
         name: the offending argument.
         value: its value.
     """
-
-    code = "bad-value"
-
-    def __init__(self, name: str, value: object, expected: str) -> None:
-        super().__init__(f"{name} must be {expected}, found {value!r}")
-        self.name = name
-        self.value = value
 
 
 def _check(name: str, value: float, positive: bool = False) -> float:

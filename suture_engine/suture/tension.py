@@ -35,7 +35,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
-from suture_engine.errors import SutureError
+from suture_engine.errors import InvalidValue
 from suture_engine.robot.params import E1, EndoBotParams
 
 __all__ = [
@@ -51,20 +51,13 @@ FloatArray = NDArray[np.float64]
 Vec = Sequence[float] | FloatArray
 
 
-class TensionEstimatorError(SutureError):
+class TensionEstimatorError(InvalidValue):
     """A tension estimator configured or fed with impossible values.
 
     Attributes:
         name: the offending argument.
         value: its value.
     """
-
-    code = "bad-value"
-
-    def __init__(self, name: str, value: object, expected: str) -> None:
-        super().__init__(f"{name} must be {expected}, found {value!r}")
-        self.name = name
-        self.value = value
 
 
 def _cross(a: Sequence[float], b: Sequence[float]) -> tuple[float, float, float]:
