@@ -103,3 +103,21 @@ def test_run_records_ground_truth_and_fills_the_knot(tmp_path: Path) -> None:
     assert {"/ground_truth/suture", "/ground_truth/tension"} <= topics
     plain = run_procedure(PROCS / "steps.yaml", backend="pybullet", out=tmp_path / "p")
     assert plain.summary.knot is None
+
+
+def test_first_measurement_is_at_rest_so_the_tare_is_steady() -> None:
+    """The runtime tares the base sensors on the first measurement: it must not be taken
+    during the thread's and tools' start-up transient. Held still for 0.3 s more, the base
+    force must stay where the first measurement put it."""
+    be = SurgicalPyBulletBackend()
+    try:
+        first = be.reset(load_procedure(BENCH).scene, 0)
+        _hold(be, {}, 300)
+        later = be.observe()
+        for name in first.robots:
+            drift = np.asarray(later.robots[name].base_wrench[:3]) - np.asarray(
+                first.robots[name].base_wrench[:3]
+            )
+            assert float(np.linalg.norm(drift)) < 0.5, (name, drift)
+    finally:
+        be.close()

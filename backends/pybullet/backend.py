@@ -85,6 +85,8 @@ class PyBulletBackend:
     """
 
     name = "pybullet"
+    SETTLE_S = 0.2
+    """How long the surgical scene settles, robots held, before the first measurement [s]."""
 
     def __init__(
         self,
@@ -168,11 +170,16 @@ class PyBulletBackend:
         # computes joint reaction forces in the step), then put the joints back.
         from suture_engine.robot.endobot import gravity_vector
 
-        for name, sim in self.robots.items():
-            sim.apply(gravity_vector(self._q0.get(name, DEFAULT_Q0), sim.model_params))
-        self._physics_step()
-        for name, sim in self.robots.items():
-            sim.reset(self._q0.get(name, DEFAULT_Q0))
+        # With the surgical scene, the thread and the mounted tools first settle for
+        # SETTLE_S [s] with the robots held, so that the first measurement (which the
+        # runtime tares) and the ground truth start from rest, not from a start-up transient.
+        steps = 1 if self.scene is None else max(1, round(self.SETTLE_S / self.dt))
+        for _ in range(steps):
+            for name, sim in self.robots.items():
+                sim.apply(gravity_vector(self._q0.get(name, DEFAULT_Q0), sim.model_params))
+            self._physics_step()
+            for name, sim in self.robots.items():
+                sim.reset(self._q0.get(name, DEFAULT_Q0))
         self._geometry = scene_geometry(scene, base_positions)
         return self.observe()
 
