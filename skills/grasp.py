@@ -115,12 +115,6 @@ class Grasp(Skill):
         )
         self._failure = self._path.first_violation(joint_box(ctx, self._robot))
 
-    def _tolerance(self) -> float:
-        """The tip position tolerance in force [m]."""
-        p = self.params
-        assert isinstance(p, GraspParams)
-        return self.TOLERANCE if p.tolerance is None else float(p.tolerance)
-
     def step(self, ctx: Any, obs: Any) -> Any:
         """Approach with the jaw open, then close it; success once it reports closed.
 
@@ -133,7 +127,7 @@ class Grasp(Skill):
         """
         import numpy as np
 
-        from skills.tool_path import hold_command, tip_world
+        from skills.tool_path import hold_command, tip_tolerance, tip_world
         from suture_engine.runtime.observation import (
             Command,
             RobotCommand,
@@ -155,7 +149,7 @@ class Grasp(Skill):
             err = float(
                 np.linalg.norm(tip_world(obs.robots[self._robot].q, self._base) - self._goal)
             )
-            if err <= self._tolerance():
+            if err <= tip_tolerance(self.params, self.TOLERANCE):
                 self._t_close = obs.t
             elif t >= self._path.duration + self.SETTLE_S:
                 return StepResult(

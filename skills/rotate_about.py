@@ -180,12 +180,6 @@ class RotateAbout(Skill):
             self._failure = self._path.first_violation(joint_box(ctx, self._robot))
         self._goal = tip_world(self._path.joints_at(1.0), self._base)
 
-    def _tolerance(self) -> float:
-        """The tip position tolerance in force [m]."""
-        p = self.params
-        assert isinstance(p, RotateAboutParams)
-        return self.TOLERANCE if p.tolerance is None else float(p.tolerance)
-
     def step(self, ctx: Any, obs: Any) -> Any:
         """Track the rotation; success at the goal.
 
@@ -198,7 +192,7 @@ class RotateAbout(Skill):
         """
         import numpy as np
 
-        from skills.tool_path import hold_command, tip_world
+        from skills.tool_path import hold_command, tip_tolerance, tip_world
         from suture_engine.runtime.observation import (
             Command,
             RobotCommand,
@@ -215,7 +209,7 @@ class RotateAbout(Skill):
         if not done:
             return StepResult(cmd)
         err = float(np.linalg.norm(tip_world(obs.robots[self._robot].q, self._base) - self._goal))
-        if err <= self._tolerance():
+        if err <= tip_tolerance(self.params, self.TOLERANCE):
             return StepResult(cmd, SkillStatus.SUCCESS)
         if t >= self._path.duration + self.SETTLE_S:
             return StepResult(

@@ -23,6 +23,7 @@ __all__ = [
     "hold_command",
     "ik_world",
     "joint_box",
+    "tip_tolerance",
     "tip_world",
     "unwrap_roll",
 ]
@@ -152,3 +153,14 @@ class ToolPath:
 def duration_for(length: float, speed: float, minimum: float = 0.1) -> float:
     """Minimum-jerk duration [s] whose peak rate over ``length`` is ``speed``."""
     return max(PEAK_RATE * abs(length) / speed, minimum)
+
+
+def tip_tolerance(params: Any, default: float) -> float:
+    """The arrival tolerance of a tool-tip path [m]: ``params.tolerance`` when set.
+
+    Args:
+        params: a skill's parameters with an optional ``tolerance`` [m].
+        default: the skill's own tolerance [m], used when ``tolerance`` is None.
+    """
+    tolerance = getattr(params, "tolerance", None)
+    return default if tolerance is None else float(tolerance)

@@ -190,12 +190,6 @@ class Wrap(Skill):
         for path in self._paths:
             self._failure = self._failure or path.first_violation(box)
 
-    def _tolerance(self) -> float:
-        """The tip position tolerance in force [m]."""
-        p = self.params
-        assert isinstance(p, WrapParams)
-        return self.TOLERANCE if p.tolerance is None else float(p.tolerance)
-
     def step(self, ctx: Any, obs: Any) -> Any:
         """Track the approach then the arc; success at the arc's end.
 
@@ -208,7 +202,7 @@ class Wrap(Skill):
         """
         import numpy as np
 
-        from skills.tool_path import hold_command, tip_world
+        from skills.tool_path import hold_command, tip_tolerance, tip_world
         from suture_engine.runtime.observation import (
             Command,
             RobotCommand,
@@ -232,7 +226,7 @@ class Wrap(Skill):
         if not done:
             return StepResult(cmd)
         err = float(np.linalg.norm(tip_world(obs.robots[self._robot].q, self._base) - self._goal))
-        if err <= self._tolerance():
+        if err <= tip_tolerance(self.params, self.TOLERANCE):
             return StepResult(cmd, SkillStatus.SUCCESS)
         if t_loop >= loop.duration + self.SETTLE_S:
             return StepResult(cmd, SkillStatus.FAILURE, f"tool tip {err * 1e3:.2f} mm off the loop")
