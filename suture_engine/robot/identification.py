@@ -382,11 +382,22 @@ def fit_differential(
     """
     phi, y = differential_rows(q, tau, dt, shape, cutoff_hz=cutoff_hz, trim=trim,
                                deadband=deadband)  # fmt: skip
+    return _solve(phi, y, shape, friction)
+
+
+def _solve(
+    rows: np.ndarray, rhs: np.ndarray, shape: GravityShape, friction: FrictionEstimate | None
+) -> JointEstimate:
+    """Least squares of a differential or energy model for one joint.
+
+    Columns are (I, ml, Fc, Fv); friction identified first (3.5.3.1) is moved to the
+    right-hand side and only I and ml are fitted.
+    """
     cols = _active(shape)
     if friction is not None:
-        y = y - friction.coulomb * phi[:, 2] - friction.viscous * phi[:, 3]
+        rhs = rhs - friction.coulomb * rows[:, 2] - friction.viscous * rows[:, 3]
         cols = [c for c in cols if c < 2]
-    theta, cond = least_squares(phi[:, cols], y)
+    theta, cond = least_squares(rows[:, cols], rhs)
     full = dict(zip(cols, theta, strict=True))
     return JointEstimate(
         inertia=float(full[0]),
@@ -433,19 +444,7 @@ def fit_energy(
     tau_ = lowpass(tau, dt, cutoff_hz)
     sl = slice(1, q_.size - 1)
     rows, work = energy_regressor(q_[sl], v[sl], tau_[sl], dt, shape, window=window)
-    cols = _active(shape)
-    if friction is not None:
-        work = work - friction.coulomb * rows[:, 2] - friction.viscous * rows[:, 3]
-        cols = [c for c in cols if c < 2]
-    theta, cond = least_squares(rows[:, cols], work)
-    full = dict(zip(cols, theta, strict=True))
-    return JointEstimate(
-        inertia=float(full[0]),
-        gravity_moment=float(full.get(1, np.nan)),
-        coulomb=float(full.get(2, friction.coulomb if friction else np.nan)),
-        viscous=float(full.get(3, friction.viscous if friction else np.nan)),
-        condition=cond,
-    )
+    return _solve(rows, work, shape, friction)
 
 
 def fit_friction(
