@@ -632,6 +632,14 @@ CASES: list[Case] = [
         ("--workers",),
         ("sw/summary.json",),
     ),
+    Case(
+        "sweep-max-time-negative",
+        ("sweep", "steps.yaml", "--runs", "1", "--out", "sw", "--max-time", "-1"),
+        {},
+        2,
+        ("--max-time",),
+        ("sw/summary.json",),
+    ),
     *_trace_cases(),
 ]
 

@@ -57,6 +57,9 @@ def sweep_command(
     if workers < 1:
         _error(err, f"--workers must be at least 1, found {workers}")
         return 2
+    if not max_time > 0.0:
+        _error(err, f"--max-time must be a positive number of seconds, found {max_time}")
+        return 2
     try:
         specs = tuple(parse_vary(text) for text in vary)
     except VarySpecError as exc:
