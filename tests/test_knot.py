@@ -265,3 +265,52 @@ def test_placement_error_components() -> None:
     assert err.height == pytest.approx(0.002)
     assert err.lateral == pytest.approx(0.0015)
     assert err.total == pytest.approx(0.0025)
+
+
+# ------------------------------------------- sliding as a friction LP (scipy)
+
+
+def sticks_by_lp(beta: float, gamma: float, mu: float) -> bool:
+    """Whether the knot can stay put: a static-friction feasibility LP (scipy's HiGHS).
+
+    Unknowns: the bridge tensions F1b, F2b and the friction forces phi_a, phi_b of
+    strand 1 at its two contacts (along u). Equalities: the knot's force balance in u
+    and v (4.15-4.16, F1a = F2a = 1) and strand 1's balance along u. Coulomb only
+    resists the pull towards the tissue: phi >= -mu N with N the contact's normal
+    force (the leg's normal component, F1a sin(beta) and F1b sin(gamma)); sliding
+    the other way does not count as placement. Infeasible: the knot slides down.
+    No closed form of (4.30) is used.
+    """
+    from scipy.optimize import linprog
+
+    cb, sb, cg, sg = math.cos(beta), math.sin(beta), math.cos(gamma), math.sin(gamma)
+    # x = [F1b, F2b, phi_a, phi_b]
+    a_eq = [
+        [-cg, cg, 0.0, 0.0],  # u: cb - cb - F1b cg + F2b cg = 0
+        [-sg, -sg, 0.0, 0.0],  # v: sb + sb - (F1b + F2b) sg = 0
+        [-cg, 0.0, 1.0, 1.0],  # strand 1 along u: cb - F1b cg + phi_a + phi_b = 0
+    ]
+    b_eq = [0.0, -2.0 * sb, -cb]
+    a_ub = [[-mu * sg, 0.0, 0.0, -1.0]]  # -phi_b <= mu F1b sg
+    b_ub = [0.0]
+    bounds = [(0.0, None), (0.0, None), (-mu * sb, None), (None, None)]
+    res = linprog(np.zeros(4), A_ub=a_ub, b_ub=b_ub, A_eq=a_eq, b_eq=b_eq, bounds=bounds)
+    assert res.status in (0, 2), res.message  # 0 feasible, 2 infeasible
+    return bool(res.status == 0)
+
+
+@settings(max_examples=200, deadline=None)
+@given(angles, angles, frictions)
+def test_sliding_condition_matches_the_friction_lp(beta: float, gamma: float, mu: float) -> None:
+    lo, hi = sticks_by_lp(beta, gamma, mu * (1 - 1e-6)), sticks_by_lp(beta, gamma, mu * (1 + 1e-6))
+    if lo != hi:
+        return  # on the boundary (to 1 ppm in mu) either answer is right
+    assert sliding_condition(beta, gamma, mu) == (not lo)
+
+
+def test_friction_lp_has_both_outcomes() -> None:
+    """The oracle is not trivially one-sided: flat pulls slide, steep ones stick."""
+    assert not sticks_by_lp(0.05, 0.8, 0.3)
+    assert sticks_by_lp(0.7, 0.8, 0.3)
+    assert sticks_by_lp(0.3, 0.31, 0.0) is False  # frictionless: slides while beta < gamma
+    assert sticks_by_lp(0.32, 0.31, 0.0)
