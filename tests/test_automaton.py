@@ -215,3 +215,71 @@ def test_a_resume_that_cannot_start_stays_locked() -> None:
     a.operator("lock")
     [record] = a.operator("resume", "c")
     assert a.state == "lock" and record.event == "start-failed"
+
+
+def _skipping_plan(first_enabled: bool = False) -> Plan:
+    def make(name: str) -> Any:
+        return lambda: _Skill(name)
+
+    return Plan(
+        "p",
+        "a",
+        {
+            "a": StepSpec("a", make("a"), "b", enabled=first_enabled),
+            "b": StepSpec("b", make("b"), "c", FailurePolicy(1, Then.LOCK)),
+            "c": StepSpec("c", make("c"), "d", enabled=False),
+            "d": StepSpec("d", make("d"), "end", enabled=False),
+        },
+        {"end": Outcome.SUCCEEDED},
+    )
+
+
+def test_a_step_whose_when_is_false_completes_at_once_without_a_skill() -> None:
+    started: list[str] = []
+    a = _automaton(_skipping_plan(), started)
+    records = a.start()
+    # the first step is skipped: the start and its planned event in the same call
+    assert [(r.source, r.dest, r.event, r.reason) for r in records] == [
+        ("idle", "autonomous/a", "start", ""),
+        ("autonomous/a", "autonomous/b", "advance", "skipped:a (when: false)"),
+    ]
+    assert started == ["b"] and a.active_step is not None and a.active_step.name == "b"
+    records = a.planned()  # b done: c and d are skipped in a row, up to the terminal
+    assert [(r.dest, r.reason) for r in records] == [
+        ("autonomous/c", "done:b"),
+        ("autonomous/d", "skipped:c (when: false)"),
+        ("end", "skipped:d (when: false)"),
+    ]
+    assert a.outcome is Outcome.SUCCEEDED and started == ["b"]
+
+
+def test_a_retry_through_a_skipped_previous_step_reruns_the_current_one() -> None:
+    started: list[str] = []
+    a = _automaton(_skipping_plan(), started)
+    a.start()
+    records = a.unpredictable("invariant:tension")
+    # b's previous step is the skipped a: the retry passes through a and runs b again
+    assert [(r.dest, r.event) for r in records] == [
+        ("autonomous/b~notbe", "fault"),
+        ("autonomous/a", "retry"),
+        ("autonomous/b", "advance"),
+    ]
+    assert started == ["b", "b"]
+
+
+def test_skipped_steps_that_lead_to_each_other_are_refused() -> None:
+    def make() -> Any:
+        return _Skill("x")
+
+    plan = Plan(
+        "p",
+        "a",
+        {
+            "a": StepSpec("a", make, "b"),
+            "b": StepSpec("b", make, "c", enabled=False),
+            "c": StepSpec("c", make, "b", enabled=False),
+        },
+        {"end": Outcome.SUCCEEDED},
+    )
+    with pytest.raises(AutomatonError, match="skipped"):
+        _automaton(plan)

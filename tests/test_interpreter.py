@@ -454,3 +454,42 @@ def test_use_states_are_inlined_and_run_in_order(tmp_path: Path) -> None:
         "autonomous/grasper-part.second",
         "finished",
     ]
+
+
+@pytest.mark.parametrize("extra", [False, True])
+def test_when_false_skips_skill_and_use_states_and_says_so(tmp_path: Path, extra: bool) -> None:
+    from suture_engine.language.loader import load
+    from suture_engine.runtime.plan import compile_procedure
+
+    sets = [f"extra={str(extra).lower()}"]
+    result = run_procedure(PROCS / "when.yaml", backend="ideal", out=tmp_path / "run", sets=sets)
+    assert result.summary.outcome == "succeeded"
+    moves = [(src, dst) for _, src, dst, _ in _transitions(result.trace)]
+    details = [
+        m.data["detail"] for m in _messages(result.trace, "/events") if m.data["name"] == "advance"
+    ]
+    skipped = [d for d in details if d and d.startswith("skipped:")]
+    if extra:
+        assert skipped == []
+        assert ("autonomous/maybe-use.second", "autonomous/last") in moves
+        assert result.summary.sim_time_s == pytest.approx(
+            0.04 + 0.03 + 0.05 + 0.05 + 0.02, abs=0.01
+        )
+        return
+    assert skipped == [
+        "skipped:maybe-first (when: false)",
+        "skipped:maybe-skill (when: false)",
+        "skipped:maybe-use (when: false)",
+    ]
+    assert moves == [
+        ("idle", "autonomous/maybe-first"),
+        ("autonomous/maybe-first", "autonomous/always"),
+        ("autonomous/always", "autonomous/maybe-skill"),
+        ("autonomous/maybe-skill", "autonomous/maybe-use"),
+        ("autonomous/maybe-use", "autonomous/last"),
+        ("autonomous/last", "finished"),
+    ]
+    # only the enabled holds took time (30 ms + 20 ms); the sub-procedure was not inlined
+    assert result.summary.sim_time_s == pytest.approx(0.05, abs=0.005)
+    plan = compile_procedure(load(PROCS / "when.yaml").procedure)
+    assert not any(name.startswith("maybe-use.") for name in plan.steps)

@@ -40,6 +40,7 @@ from suture_engine.errors import SutureError
 __all__ = [
     "ABORTED",
     "FAILED",
+    "SKIPPED",
     "Automaton",
     "AutomatonError",
     "FailurePolicy",
@@ -127,6 +128,9 @@ class StepSpec:
         invariant: the step's invariant for the monitor (4.43), or None.
         robots: the robots the step drives (others hold their pose).
         roles: role -> robot of the (sub-)procedure the step comes from.
+        enabled: False when the state's ``when:`` is false: entering the step skips it
+            (no skill is built; it completes at once with its planned event, the
+            transition's reason saying it was skipped).
     """
 
     name: str
@@ -137,6 +141,11 @@ class StepSpec:
     invariant: Any = None
     robots: tuple[str, ...] = ()
     roles: Mapping[str, str] = field(default_factory=dict)
+    enabled: bool = True
+
+
+SKIPPED = "skipped"
+"""Reason prefix of the planned event that completes a skipped step (``when:`` false)."""
 
 
 @dataclass(frozen=True)
@@ -271,6 +280,17 @@ class Automaton:
                 raise AutomatonError(
                     f"step {step.name!r}: failed leads to unknown state {goto!r}", step.name
                 )
+        for step in plan.steps.values():
+            seen: list[str] = []
+            name = step.name
+            while name in plan.steps and not plan.steps[name].enabled:
+                if name in seen:
+                    raise AutomatonError(
+                        f"steps {seen} are all skipped (when: false) and lead to each other",
+                        name,
+                    )
+                seen.append(name)
+                name = plan.steps[name].on_done
 
     def _states(self) -> list[Any]:
         children: list[str] = []
@@ -319,6 +339,9 @@ class Automaton:
         name = dest.split("/", 1)[1] if dest.startswith("autonomous/") else dest
         spec = self.plan.steps.get(name)
         if spec is None:
+            return
+        if not spec.enabled:  # skipped (when: false): no skill to build or start
+            self._pending = (spec, None)
             return
         skill = spec.make_skill()
         self._start_skill(spec, skill)
@@ -405,17 +428,26 @@ class Automaton:
         return record
 
     def _enter_step(
-        self, event: str, kind: str, step: str, reason: str = ""
+        self, event: str, kind: str, step: str, reason: str = "", previous: str | None = None
     ) -> list[TransitionRecord]:
-        """Fire an event that enters ``step``; a skill start failure becomes a fault."""
+        """Fire an event that enters ``step``; a skill start failure becomes a fault.
+
+        A step whose ``when:`` is false completes at once: its planned event follows
+        in the same call, with the reason ``skipped:<step>``.
+        """
         if step not in self.plan.steps:
             raise AutomatonError(f"no step named {step!r}", self.state, event)
         try:
-            return [self._fire(event, kind, reason, target=step)]
+            out = [self._fire(event, kind, reason, target=step)]
         except AutomatonError:
             raise
         except Exception as exc:  # the skill's start raised; the state did not change
             return self._start_failed(step, exc)
+        if previous is not None and self.step_name == step:
+            self._previous[step] = previous
+        if self.mode is Mode.AUTONOMOUS and not self.plan.steps[step].enabled:
+            out += self._advance(step, f"{SKIPPED}:{step} (when: false)")
+        return out
 
     def _start_failed(self, step: str, exc: Exception) -> list[TransitionRecord]:
         reason = f"skill-start-failed:{step}:{type(exc).__name__}: {exc}"
@@ -437,13 +469,14 @@ class Automaton:
         step = self.step_name
         if self.mode is not Mode.AUTONOMOUS or step is None:
             raise AutomatonError("no running step to finish", self.state, "advance")
+        return self._advance(step, f"done:{step}")
+
+    def _advance(self, step: str, reason: str) -> list[TransitionRecord]:
+        """Fire ``step``'s planned event to its ``done`` state (a step or a terminal)."""
         dest = self.plan.steps[step].on_done
         if dest in self.plan.steps:
-            out = self._enter_step("advance", "planned", dest, reason=f"done:{step}")
-            if self.step_name == dest:
-                self._previous[dest] = step
-            return out
-        return [self._fire("advance", "planned", f"done:{step}")]
+            return self._enter_step("advance", "planned", dest, reason=reason, previous=step)
+        return [self._fire("advance", "planned", reason)]
 
     def unpredictable(self, reason: str, operator_lock: bool = False) -> list[TransitionRecord]:
         """An unpredictable event e~_i: into the step's NOT-BE state, then apply its policy.

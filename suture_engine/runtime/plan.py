@@ -2,7 +2,10 @@
 
 Skill states become steps (a factory building a fresh skill on each entry,
 their ``done`` target, failure policy, timeout, invariant and the robot they
-drive); terminal states become terminals with their outcome. A ``use:`` state
+drive); terminal states become terminals with their outcome. A state whose
+``when:`` is false becomes a skipped step (``StepSpec.enabled`` False): the
+automaton completes it at once when it is entered; a skipped ``use:`` state is
+one skipped step, its sub-procedure is not inlined. A ``use:`` state
 is inlined: its sub-procedure's states are named ``<state>.<sub-state>``, the
 sub-procedure's ``succeeded`` terminals lead to the ``use:`` state's ``done``
 target, and its other terminals end the run with their outcome.
@@ -69,6 +72,11 @@ def _factory(skill_name: str, params: Any) -> Any:
     return lambda: cls(params)
 
 
+def _skipped() -> Any:
+    """The skill factory of a skipped ``use:`` state: never called (no skill runs)."""
+    raise AutomatonError("a skipped state (when: false) runs no skill")
+
+
 def _inline(
     proc: Any,
     prefix: str,
@@ -105,6 +113,17 @@ def _inline(
         done = st.on.get("done")
         if not isinstance(done, str):
             raise AutomatonError(f"state {prefix + name!r} has no 'done' target", prefix + name)
+        if not getattr(st, "enabled", True):
+            # ``when:`` false: one skipped step stands for the whole sub-procedure.
+            entry[name] = prefix + name
+            steps[prefix + name] = StepSpec(
+                name=prefix + name,
+                make_skill=_skipped,
+                on_done=resolve(done),
+                roles=roles,
+                enabled=False,
+            )
+            return entry[name]
         if not hasattr(st.use, "states"):
             raise AutomatonError(f"state {prefix + name!r}: sub-procedure not loaded", name)
         succ = resolve(done)
@@ -137,6 +156,7 @@ def _inline(
             invariant=convert_invariant(st.invariant),
             robots=_robots(st.params, roles),
             roles=roles,
+            enabled=bool(getattr(st, "enabled", True)),
         )
     return resolve(proc.initial)
 
