@@ -65,6 +65,16 @@ def run(
     video_interval: Annotated[
         float, typer.Option(help="With --video: simulated seconds between frames.")
     ] = 0.1,
+    fault: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--fault",
+            help="Inject a fault (repeatable), e.g. 'ft.bias=0.5 N@2 s', "
+            "'endobot_1:enc.dropout@3 s for 20 ms', 'snag=2 N@state bite', "
+            "'endobot_1:pitch.joint-lock@1 s', 'blow-up@5 s;mode=energy' "
+            "(grammar: suture_engine/faults/syntax.py, docs/language.md).",
+        ),
+    ] = None,
 ) -> None:
     """Run a procedure; write DIR/trace.mcap and DIR/summary.json."""
     from suture_engine.runtime.cli_run import run_command
@@ -83,6 +93,7 @@ def run(
             replay_trace=trace,
             video=video,
             video_interval=video_interval,
+            faults=fault or [],
         )
     )
 

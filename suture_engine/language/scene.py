@@ -19,6 +19,7 @@ from pydantic import (
     model_validator,
 )
 
+from suture_engine.faults.model import Fault
 from suture_engine.language.units import Angle, Damping, Duration, Force, Length, Mass, Position
 from suture_engine.language.units import Stiffness as StiffnessUnit
 
@@ -256,12 +257,30 @@ class Scene(_Model):
     """Physics and sensor settings."""
     safety_factor: float = Field(default=0.5, gt=0.0, le=1.0)
     """Fraction of the weaker of suture strength and pull-out allowed [-]."""
+    faults: list[Fault] = Field(default_factory=list)
+    """Faults to inject while the procedure runs (sensor noise, bias, delay, dropout;
+    grasp slip; suture snag; joint lock or weakness; physics blow-up), each with its
+    trigger (``at``, ``when`` a state is entered, or random with a seed). The same
+    vocabulary as ``suture run --fault``."""
 
     @field_validator("robots")
     @classmethod
     def _two(cls, v: dict[str, RobotSpec]) -> dict[str, RobotSpec]:
         if len(v) != 2:
             raise ValueError(f"a scene has exactly two EndoBots, found {len(v)}")
+        return v
+
+    @field_validator("faults")
+    @classmethod
+    def _fault_robots(cls, v: list[Fault], info: ValidationInfo) -> list[Fault]:
+        robots = info.data.get("robots")
+        if robots is None:  # the robots themselves are wrong: reported on their own
+            return v
+        for i, fault in enumerate(v):
+            if fault.robot is not None and fault.robot not in robots:
+                raise ValueError(
+                    f"faults[{i}]: robot {fault.robot!r} is not a scene robot ({', '.join(robots)})"
+                )
         return v
 
     @property

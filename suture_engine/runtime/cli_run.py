@@ -71,10 +71,17 @@ def run_command(
     replay_trace: Path | None = None,
     video: Path | None = None,
     video_interval: float = 0.1,
+    faults: Sequence[str] = (),
 ) -> int:
-    """``suture run``: returns the exit code."""
+    """``suture run``: returns the exit code.
+
+    A ``--fault`` that does not parse, or that the backend cannot simulate, is a usage
+    error (exit 2); one whose field the fault model refuses is invalid input (exit 1).
+    """
     from backends.registry import UnknownBackend
     from suture_engine.errors import SutureError
+    from suture_engine.faults.support import FaultNotSupported
+    from suture_engine.faults.syntax import FaultSyntaxError, FaultValueError
     from suture_engine.runtime.operator import OperatorFileMissing
     from suture_engine.runtime.run import ProcedureLoadError, SetOverrideError, run_procedure
 
@@ -130,12 +137,22 @@ def run_command(
             progress=progress_cb,
             backend_options=options,
             on_tick=_chain(hooks),
+            faults=faults,
         )
     except ProcedureLoadError as exc:
         for problem in exc.problems:
             _error(problem)
         return 1
-    except (SetOverrideError, UnknownBackend, OperatorFileMissing) as exc:
+    except FaultValueError as exc:
+        _error(f"{exc.code}: {exc.message}")
+        return 1
+    except (
+        SetOverrideError,
+        UnknownBackend,
+        OperatorFileMissing,
+        FaultSyntaxError,
+        FaultNotSupported,
+    ) as exc:
         _error(f"{exc.code}: {exc.message}")
         return 2
     except SutureError as exc:

@@ -251,6 +251,7 @@ def run_procedure(
     progress: Callable[[float, float], None] | None = None,
     backend_options: dict[str, Any] | None = None,
     on_tick: Callable[[Any], None] | None = None,
+    faults: Sequence[str] = (),
 ) -> RunResult:
     """Run a procedure file; write ``trace.mcap`` and ``summary.json``.
 
@@ -267,9 +268,13 @@ def run_procedure(
         progress: called with (t [s], max_time_s [s]) during the run.
         backend_options: extra keyword options for the backend's constructor.
         on_tick: called after every tick with the interpreter (live panel, video).
+        faults: ``--fault`` specs (:mod:`suture_engine.faults.syntax`), injected with the
+            scene's ``faults:`` by a :class:`~suture_engine.faults.backend.FaultyBackend`.
 
     Raises:
-        ProcedureLoadError, SetOverrideError, OperatorFileError, UnknownBackend.
+        ProcedureLoadError, SetOverrideError, OperatorFileError, UnknownBackend,
+        FaultSpecError (a bad ``--fault``), FaultNotSupported (a ``--fault`` the backend
+        cannot simulate; the scene's are a located ProcedureLoadError).
     """
     from backends import registry
     from suture_engine.runtime.interpreter import Interpreter
@@ -278,6 +283,7 @@ def run_procedure(
     from suture_engine.runtime.recorder import TraceRecorder
 
     proc, plan = load_plan(path, sets)
+    run_faults = _run_faults(proc, plan, backend, faults)
     operator: Any = None
     if operator_file is None and not interactive:
         operator_file = declared_operator_file(path, proc.params)
@@ -294,6 +300,14 @@ def run_procedure(
         from backends.base import BackendError
 
         raise BackendError(backend, f"unsupported option: {exc}") from None
+    if run_faults:
+        from suture_engine.faults.backend import FaultyBackend
+
+        try:
+            be = FaultyBackend(be, run_faults, backend_name=backend)
+        except SutureError:
+            be.close()
+            raise
     out_dir = Path(out) if out is not None else _new_run_dir(Path("runs"), proc.name, seed)
     out_dir.mkdir(parents=True, exist_ok=True)
     trace = out_dir / "trace.mcap"
@@ -319,7 +333,7 @@ def run_procedure(
             robots=tuple(first.robots),
             backend=backend,
             params={k: _jsonable(v) for k, v in proc.params.items()},
-            extra={"procedure_file": str(path), "sets": list(sets)},
+            extra=_meta_extra(path, sets, run_faults),
         )
         interp = Interpreter(
             plan,
@@ -338,6 +352,10 @@ def run_procedure(
             manual_invariant=manual_inv,
             on_tick=on_tick,
         )
+        if run_faults:
+            from suture_engine.faults.record import trace_sink
+
+            be.attach(trace_sink(recorder.writer), _running_step(interp))
         summary = interp.run(proc.name, backend)
     finally:
         be.close()
@@ -345,6 +363,68 @@ def run_procedure(
             operator.close()
     summary_path = write_summary(out_dir / "summary.json", summary)
     return RunResult(summary, out_dir, trace, summary_path)
+
+
+def _meta_extra(path: str | Path, sets: Sequence[str], faults: Sequence[Any]) -> dict[str, Any]:
+    extra: dict[str, Any] = {"procedure_file": str(path), "sets": list(sets)}
+    if faults:
+        from suture_engine.faults.syntax import format_fault
+
+        extra["faults"] = [format_fault(f) for f in faults]
+    return extra
+
+
+def _running_step(interp: Any) -> Callable[[], str | None]:
+    """The step the automaton runs autonomously now (None in Lock, Manual, NOT-BE)."""
+    from suture_engine.runtime.automaton import Mode
+
+    def running() -> str | None:
+        a = interp.automaton
+        return a.step_name if a.mode is Mode.AUTONOMOUS else None
+
+    return running
+
+
+def _run_faults(proc: Any, plan: Any, backend: str, specs: Sequence[str]) -> list[Any]:
+    """The run's faults: the scene's, then the ``--fault`` specs, checked against the
+    procedure's steps and robots and against what ``backend`` simulates."""
+    scene_faults = list(getattr(proc.scene, "faults", None) or [])
+    if not scene_faults and not specs:
+        return []
+    from suture_engine.faults.schedule import state_matches
+    from suture_engine.faults.support import FaultNotSupported, fault_problems, refusal
+    from suture_engine.faults.syntax import FaultValueError, parse_fault
+
+    problems = [p.format() for p in fault_problems(proc, backend)]
+    steps = list(plan.steps)
+    for i, f in enumerate(scene_faults):
+        if f.when is not None and not any(state_matches(s, f.when) for s in steps):
+            where = f"{proc.file}: scene faults[{i}]"
+            problems.append(f"{where}: unknown-state: no step {f.when!r} ({', '.join(steps)})")
+    if problems:
+        raise ProcedureLoadError(problems)
+    robots = list(proc.scene.robots) if proc.scene is not None else []
+    cli: list[Any] = []
+    for spec in specs:
+        fault = parse_fault(spec)
+        if fault.robot is not None and robots and fault.robot not in robots:
+            raise FaultValueError(
+                spec, 0, "robot", f"no robot {fault.robot!r} in the scene ({', '.join(robots)})"
+            )
+        if fault.when is not None and not any(state_matches(s, fault.when) for s in steps):
+            raise FaultValueError(
+                spec,
+                max(0, spec.find(fault.when)),
+                "when",
+                f"no step {fault.when!r} ({', '.join(steps)})",
+            )
+        reason = refusal(fault, backend)
+        if reason is not None:
+            raise FaultNotSupported(
+                backend, fault.kind, len(scene_faults) + len(cli), reason, f"--fault {spec!r}"
+            )
+        cli.append(fault)
+    return scene_faults + cli
 
 
 def _jsonable(value: Any) -> Any:
