@@ -49,6 +49,7 @@ def validate_file(
     *,
     allow_outside: bool = False,
     params: Mapping[str, Any] | None = None,
+    backend: str | None = None,
 ) -> list[Problem]:
     """Every problem of a procedure file: the loader's, then the semantic checks'.
 
@@ -56,6 +57,8 @@ def validate_file(
         path: the procedure file.
         allow_outside: allow includes outside the procedure's folder tree.
         params: parameter values overriding the defaults (as written in YAML).
+        backend: the backend the procedure is to run on: the scene's ``faults:`` it
+            cannot simulate are problems (``fault-not-supported``, naming it).
     """
     from suture_engine.language.loader import load
 
@@ -63,6 +66,10 @@ def validate_file(
     problems = list(result.problems)
     if result.procedure is not None:
         problems.extend(check_procedure(result.procedure))
+        if backend is not None:
+            from suture_engine.faults.support import fault_problems
+
+            problems.extend(fault_problems(result.procedure, backend))
     return _sorted_unique(problems)
 
 

@@ -1,0 +1,434 @@
+"""The fault campaign: many runs with random faults, each classified from its trace.
+
+Run ``i`` draws its fault from ``numpy.random.SeedSequence([base_seed, i])``: the
+kind cycles through the campaign's kinds (so each kind gets its share of runs);
+the target, magnitude, trigger (a time, a step entered, or random with a seed)
+and the run's seed are drawn. Each run is a real ``suture run ... --fault SPEC``
+in its own process (a crash of one run is seen as a crash, never takes the
+campaign down), and is then classified:
+
+- ``succeeded``, ``failed`` (failed after its retries, to a failure terminal),
+  ``aborted`` (by policy), ``locked`` (the monitor or the policy locked and the
+  run waits for a surgeon), ``time-limit`` (cut at ``max_time_s``);
+- a **crash**: an exit code other than 0 / 1, a traceback in the output, an
+  invalid-input exit (the campaign's specs are valid), or a missing or
+  unreadable trace or summary.
+
+Its trace is read for tension-limit violations: ticks where the simulator's true
+tension (``/ground_truth/tension``, backends with a thread) is above the scene's
+derived limit, and, reported apart, ticks where the *estimated* tension is (on a
+backend without a thread that estimate is all there is, and a sensor fault moves
+it without any thread being pulled).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import subprocess
+import sys
+from collections import Counter
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+
+from suture_engine.faults.model import FAULT_KINDS, JOINTS, Fault
+from suture_engine.faults.syntax import format_fault
+
+__all__ = [
+    "OUTCOMES",
+    "CampaignJob",
+    "CampaignRow",
+    "Target",
+    "classify",
+    "format_table",
+    "make_jobs",
+    "random_fault",
+    "run_campaign",
+    "run_job",
+    "tally",
+    "trace_violations",
+]
+
+OUTCOMES = ("succeeded", "failed", "aborted", "locked", "time-limit")
+"""The classified outcomes, in table order."""
+
+
+@dataclass(frozen=True)
+class Target:
+    """A procedure run in the campaign, on one backend.
+
+    Attributes:
+        procedure: the procedure file.
+        backend: the backend name.
+        kinds: the fault kinds drawn for it.
+        steps: the procedure's step names (for ``when`` triggers).
+        robots: the scene's robot names.
+        horizon_s: fault times are drawn in ``[0, horizon_s]`` [s].
+        max_time_s: the run's simulated time limit [s].
+    """
+
+    procedure: Path
+    backend: str
+    kinds: tuple[str, ...]
+    steps: tuple[str, ...]
+    robots: tuple[str, ...]
+    horizon_s: float = 12.0
+    max_time_s: float = 40.0
+
+
+class CampaignJob(NamedTuple):
+    """One run of the campaign.
+
+    Attributes:
+        number: the run's index.
+        target: what it runs.
+        seed: the run's seed.
+        fault: the ``--fault`` spec.
+        kind: the fault's kind.
+        out_dir: the run's output folder.
+    """
+
+    number: int
+    target: Target
+    seed: int
+    fault: str
+    kind: str
+    out_dir: Path
+
+
+@dataclass(frozen=True)
+class CampaignRow:
+    """One finished run.
+
+    Attributes:
+        index: the run's index.
+        procedure: the procedure's file name.
+        backend: the backend.
+        kind: the fault kind.
+        fault: the ``--fault`` spec.
+        seed: the run's seed.
+        outcome: one of :data:`OUTCOMES`, or ``crash``.
+        exit_code: the process exit code.
+        final_state: the automaton's final state.
+        retries: retries taken.
+        limit_N: the scene's derived tension limit [N].
+        max_true_tension_N: the largest true tension (NaN without a thread) [N].
+        true_violations: ticks with the true tension above the limit.
+        max_estimated_tension_N: the largest finite estimated tension [N].
+        estimate_over_limit: ticks with the estimated tension above the limit.
+        fault_records: fault onsets recorded in the trace.
+        error: why the run is a crash ("" otherwise).
+    """
+
+    index: int
+    procedure: str
+    backend: str
+    kind: str
+    fault: str
+    seed: int
+    outcome: str
+    exit_code: int
+    final_state: str = ""
+    retries: int = 0
+    limit_N: float = math.nan
+    max_true_tension_N: float = math.nan
+    true_violations: int = 0
+    max_estimated_tension_N: float = math.nan
+    estimate_over_limit: int = 0
+    fault_records: int = 0
+    error: str = ""
+
+
+def _when_or_at(rng: np.random.Generator, target: Target, data: dict[str, Any]) -> None:
+    """A trigger: a time (1/2), entering a step (1/4), or random with a seed (1/4)."""
+    r = rng.random()
+    if r < 0.5 or not target.steps:
+        data["at"] = round(float(rng.uniform(0.0, target.horizon_s)), 3)
+    elif r < 0.75:
+        data["when"] = str(rng.choice(list(target.steps)))
+        data["at"] = round(float(rng.uniform(0.0, 2.0)), 3)
+    elif r < 0.875:
+        data["rate"] = round(float(rng.uniform(0.1, 1.0)), 3)
+    else:
+        data["probability"] = round(float(rng.uniform(0.3, 1.0)), 3)
+        data["within"] = target.horizon_s
+    if "rate" in data or "probability" in data:
+        data["seed"] = int(rng.integers(1_000_000))
+
+
+def random_fault(rng: np.random.Generator, kind: str, target: Target) -> Fault:
+    """A random fault of ``kind`` for ``target`` (magnitudes in the ranges below).
+
+    noise: ft 0.01-1 N, encoders 1e-4-5e-3 rad; bias: ft 0.1-5 N on a random axis,
+    encoders 1e-3-0.05 rad; delay 1-20 ms; dropout 5-100 ms; snag 0.5-5 N for
+    50-500 ms; joint-lock on a random joint, for good or 0.1-2 s; joint-weak scale
+    0-0.9; blow-up NaN or energy. Robot: one of the scene's, or every robot.
+    """
+    data: dict[str, Any] = {"kind": kind}
+    robot_pick = rng.integers(len(target.robots) + 1)
+    if robot_pick < len(target.robots):
+        data["robot"] = target.robots[robot_pick]
+    if kind in ("noise", "bias", "delay", "dropout"):
+        sensor = "ft" if rng.random() < 0.5 else "encoders"
+        data["sensor"] = sensor
+        if kind == "noise":
+            data["value"] = (
+                float(rng.uniform(0.01, 1.0)) if sensor == "ft" else float(rng.uniform(1e-4, 5e-3))
+            )
+        elif kind == "bias":
+            if sensor == "ft":
+                data["value"] = float(rng.uniform(0.1, 5.0)) * (1 if rng.random() < 0.5 else -1)
+                data["axis"] = str(rng.choice(["x", "y", "z"]))
+            else:
+                data["value"] = float(rng.uniform(1e-3, 0.05))
+        elif kind == "delay":
+            data["value"] = float(rng.uniform(0.001, 0.02))
+        else:
+            data["duration"] = round(float(rng.uniform(0.005, 0.1)), 3)
+    elif kind == "snag":
+        data["value"] = float(rng.uniform(0.5, 5.0))
+        data["duration"] = round(float(rng.uniform(0.05, 0.5)), 3)
+    elif kind in ("joint-lock", "joint-weak"):
+        data["joint"] = str(rng.choice(list(JOINTS)))
+        if "robot" not in data:
+            data["robot"] = str(rng.choice(list(target.robots)))
+        if kind == "joint-weak":
+            data["value"] = float(rng.uniform(0.0, 0.9))
+        elif rng.random() < 0.5:
+            data["duration"] = round(float(rng.uniform(0.1, 2.0)), 3)
+    elif kind == "blow-up":
+        data["mode"] = "nan" if rng.random() < 0.5 else "energy"
+    if "value" in data:
+        data["value"] = float(f"{data['value']:.3g}")
+    _when_or_at(rng, target, data)
+    if kind in ("grasp-slip", "snag", "blow-up", "joint-lock") and "rate" in data:
+        data.pop("rate")  # one-shot kinds: at most one onset
+        data["probability"] = round(float(rng.uniform(0.3, 1.0)), 3)
+        data["within"] = target.horizon_s
+    return Fault.model_validate(data)
+
+
+def make_jobs(
+    targets: Sequence[Target], runs: int, base_seed: int, out_root: Path
+) -> list[CampaignJob]:
+    """``runs`` jobs spread over ``targets`` (in turn), each fault drawn from its own seed."""
+    jobs: list[CampaignJob] = []
+    counters: Counter[int] = Counter()
+    for i in range(runs):
+        t_index = i % len(targets)
+        target = targets[t_index]
+        k = counters[t_index]
+        counters[t_index] += 1
+        rng = np.random.default_rng(np.random.SeedSequence([base_seed, i]))
+        kind = target.kinds[k % len(target.kinds)]
+        fault = random_fault(rng, kind, target)
+        seed = int(rng.integers(1_000_000))
+        jobs.append(
+            CampaignJob(i, target, seed, format_fault(fault), kind, out_root / f"run-{i:04d}")
+        )
+    return jobs
+
+
+def trace_violations(trace: Path, limit_N: float) -> tuple[float, int, float, int, int]:
+    """``(max true tension, ticks above the limit, max finite estimate, estimate ticks above,
+    fault onsets)`` read from a trace (NaN maxima when a channel is absent).
+
+    Raises:
+        TraceError: the trace cannot be read.
+    """
+    from suture_engine.faults.record import read_faults
+    from suture_engine.trace.reader import TraceReader
+
+    reader = TraceReader(trace)
+    true_max = est_max = -math.inf
+    true_over = est_over = 0
+    for msg in reader.messages(["/ground_truth/tension", "/tension/estimated"]):
+        value = msg.data.get("tension_N")
+        if value is None or not math.isfinite(float(value)):
+            continue
+        v = float(value)
+        if msg.topic == "/ground_truth/tension":
+            true_max = max(true_max, v)
+            true_over += v > limit_N
+        else:
+            est_max = max(est_max, v)
+            est_over += v > limit_N
+    onsets = sum(1 for r in read_faults(trace) if r.phase == "start")
+    nan = math.nan
+    return (
+        true_max if true_max > -math.inf else nan,
+        true_over,
+        est_max if est_max > -math.inf else nan,
+        est_over,
+        onsets,
+    )
+
+
+def classify(summary: dict[str, Any]) -> str:
+    """The campaign outcome of a run's ``summary.json``."""
+    outcome = str(summary.get("outcome", ""))
+    stopped = str((summary.get("metrics") or {}).get("stopped", ""))
+    if outcome == "succeeded":
+        return "succeeded"
+    if outcome == "aborted":
+        return "aborted"
+    if stopped.startswith("time limit"):
+        return "time-limit"
+    final = str(summary.get("final_state", ""))
+    if final == "lock" or final.endswith("_notbe") or "locked" in stopped:
+        return "locked"
+    return "failed"
+
+
+def run_job(job: CampaignJob, python: str = sys.executable) -> CampaignRow:
+    """Run one job as ``python -m suture_engine.cli run ...`` and classify it."""
+    t = job.target
+    shutil.rmtree(job.out_dir, ignore_errors=True)
+    cmd = [
+        python,
+        "-m",
+        "suture_engine.cli",
+        "run",
+        str(t.procedure),
+        "--backend",
+        t.backend,
+        "--seed",
+        str(job.seed),
+        "--max-time",
+        str(t.max_time_s),
+        "--out",
+        str(job.out_dir),
+        "--fault",
+        job.fault,
+    ]
+    env = {**os.environ, "COLUMNS": "200", "NO_COLOR": "1"}
+
+    def crash(code: int, error: str) -> CampaignRow:
+        return _row(job, "crash", code, error=error[:300])
+
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=1800)
+    except subprocess.TimeoutExpired:
+        return crash(-1, "hung (30 min)")
+    output = proc.stdout + proc.stderr
+    if proc.returncode not in (0, 1) or "Traceback" in output:
+        return crash(proc.returncode, " | ".join(output.strip().splitlines()[-3:]))
+    summary_path = job.out_dir / "summary.json"
+    trace = job.out_dir / "trace.mcap"
+    if not summary_path.is_file() or not trace.is_file():
+        tail = " | ".join(output.strip().splitlines()[-2:])
+        return crash(proc.returncode, f"no summary or trace: {tail}")
+    try:
+        summary = json.loads(summary_path.read_text(encoding="utf-8"))
+        limit = float(summary.get("tension_limit_N") or math.nan)
+        true_max, true_over, est_max, est_over, onsets = trace_violations(trace, limit)
+    except Exception as exc:  # an unreadable trace or summary is a crash of the run
+        return crash(proc.returncode, f"unreadable: {exc}")
+    return _row(
+        job,
+        classify(summary),
+        proc.returncode,
+        final_state=str(summary.get("final_state", "")),
+        retries=int(summary.get("retries", 0)),
+        limit_N=limit,
+        max_true_tension_N=true_max,
+        true_violations=true_over,
+        max_estimated_tension_N=est_max,
+        estimate_over_limit=est_over,
+        fault_records=onsets,
+    )
+
+
+def _row(job: CampaignJob, outcome: str, exit_code: int, **fields: Any) -> CampaignRow:
+    t = job.target
+    return CampaignRow(
+        index=job.number,
+        procedure=t.procedure.name,
+        backend=t.backend,
+        kind=job.kind,
+        fault=job.fault,
+        seed=job.seed,
+        outcome=outcome,
+        exit_code=exit_code,
+        **fields,
+    )
+
+
+def run_campaign(
+    jobs: Sequence[CampaignJob],
+    workers: int = 2,
+    keep_traces: bool = False,
+    on_row: Callable[[CampaignRow], None] | None = None,
+) -> list[CampaignRow]:
+    """Run the jobs, ``workers`` at a time (each in its own process); rows in index order."""
+    rows: list[CampaignRow] = []
+    for row in _results(jobs, workers, keep_traces):
+        rows.append(row)
+        if on_row is not None:
+            on_row(row)
+    return sorted(rows, key=lambda r: r.index)
+
+
+def _results(jobs: Sequence[CampaignJob], workers: int, keep: bool) -> Iterator[CampaignRow]:
+    def one(job: CampaignJob) -> CampaignRow:
+        row = run_job(job)
+        if not keep and row.outcome != "crash":
+            shutil.rmtree(job.out_dir, ignore_errors=True)
+        return row
+
+    with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
+        pending = {pool.submit(one, job) for job in jobs}
+        while pending:
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in done:
+                yield fut.result()
+
+
+@dataclass
+class _Tally:
+    runs: int = 0
+    outcomes: Counter[str] = field(default_factory=Counter)
+    crashes: int = 0
+    true_violation_runs: int = 0
+    estimate_runs: int = 0
+
+
+def tally(rows: Sequence[CampaignRow]) -> dict[str, _Tally]:
+    """Counts per fault kind (and ``all``)."""
+    out: dict[str, _Tally] = {}
+    for row in rows:
+        for key in (f"{row.kind}", "all"):
+            t = out.setdefault(key, _Tally())
+            t.runs += 1
+            if row.outcome == "crash":
+                t.crashes += 1
+            else:
+                t.outcomes[row.outcome] += 1
+            t.true_violation_runs += row.true_violations > 0
+            t.estimate_runs += row.estimate_over_limit > 0
+    order = [k for k in FAULT_KINDS if k in out] + ["all"]
+    return {k: out[k] for k in order if k in out}
+
+
+def format_table(rows: Sequence[CampaignRow]) -> str:
+    """The outcome counts per fault kind as a Markdown table."""
+    head = ["fault kind", "runs", *OUTCOMES, "crashes", "limit violations", "estimate > limit"]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for kind, t in tally(rows).items():
+        cells = [
+            f"**{kind}**" if kind == "all" else kind,
+            str(t.runs),
+            *(str(t.outcomes.get(o, 0)) for o in OUTCOMES),
+            str(t.crashes),
+            str(t.true_violation_runs),
+            str(t.estimate_runs),
+        ]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
