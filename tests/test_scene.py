@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import itertools
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
 
-from backends.pybullet.scene import SceneError, build_scene
+from backends.pybullet.scene import SceneError, build_scene, stitch_points
 from backends.pybullet.tools import BentTipGrasper, Grasper, Stitcher
 from suture_engine.language.scene import Scene as SceneModel
 
@@ -37,10 +38,11 @@ def test_model_scene_robots_at_base_poses_with_tools_on_their_tool_links() -> No
         assert isinstance(hook, Grasper) and hook.hook_body >= 0
         assert scene.suture.params.length == pytest.approx(model.suture.length)
         assert scene.suture.params.n_segments >= 40
-        # The stitch runs between the first named bite's entry and exit points.
+        # The stitch runs between the named bite nearest the wound's middle (entry_2 at
+        # x = 0 on the bench, the wound running from x = -15 mm to 15 mm).
         assert scene.tissue is not None
-        assert np.allclose(scene.tissue.entry, model.tissue.points["entry_1"])
-        assert np.allclose(scene.tissue.exit, model.tissue.points["exit_1"])
+        assert np.allclose(scene.tissue.entry, model.tissue.points["entry_2"])
+        assert np.allclose(scene.tissue.exit, model.tissue.points["exit_2"])
         for _ in range(500):
             scene.step()
         # Robots hold their start joints; each tool tip sits on its robot's tool link.
@@ -82,9 +84,10 @@ def test_model_scene_without_stitcher_starts_stitched_through_the_tissue() -> No
             for _ in range(200):
                 scene.step()
             # A 7.5 mm capsule in an 8 mm bite: at least one lies in the channel, below the
-            # surface, and the thread stays threaded.
+            # surface (the channel is 0.5 mm deep, channel_depth), and the thread stays
+            # threaded.
             assert len(scene.tissue.inside) >= 1
-            assert scene.suture.centerline()[:, 2].min() < -1e-3
+            assert scene.suture.centerline()[:, 2].min() < -0.1e-3
     finally:
         scene.close()
 
@@ -123,3 +126,84 @@ def test_bad_dict_scenes_are_typed_errors(config: dict, field: str) -> None:  # 
     with pytest.raises(SceneError) as err:
         build_scene(config)
     assert err.value.field == field
+
+
+def _segment_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
+    """Distance of each point to the polyline ``line`` [m] (point-to-segment, by hand)."""
+    out = []
+    for x in points:
+        best = np.inf
+        for a, b in itertools.pairwise(line):
+            u = b - a
+            t = min(max(float((x - a) @ u) / float(u @ u), 0.0), 1.0)
+            best = min(best, float(np.linalg.norm(a + t * u - x)))
+        out.append(best)
+    return np.array(out)
+
+
+def _arc_length_to(line: np.ndarray, x: np.ndarray) -> float:
+    """Length along ``line`` from its start to the point of it nearest ``x`` [m]."""
+    best, at = np.inf, 0.0
+    run = 0.0
+    for a, b in itertools.pairwise(line):
+        u = b - a
+        t = min(max(float((x - a) @ u) / float(u @ u), 0.0), 1.0)
+        d = float(np.linalg.norm(a + t * u - x))
+        if d < best:
+            best, at = d, run + t * float(np.linalg.norm(u))
+        run += float(np.linalg.norm(u))
+    return at
+
+
+@pytest.mark.parametrize("tail", [0.03, 0.05])
+def test_stitched_start_runs_the_thread_through_the_channel(tail: float) -> None:
+    """The stitched start: the thread passes within 1 mm of the whole channel, ``tail`` lies
+    out of the entry point, the needle is in the stitcher's jaw, and nothing moves much
+    over 1 s of settling (stretch < 3 %)."""
+    import pybullet as p
+
+    model = _model("bench.yaml")
+    scene = build_scene(model, seed=0, start="stitched", tail=tail)
+    try:
+        tissue = scene.tissue
+        assert tissue is not None and tissue.suture is scene.suture
+        entry = np.asarray(tissue.entry)
+        for settled in (False, True):
+            line = scene.suture.centerline()
+            assert _segment_distance(tissue.channel, line).max() < 1e-3, settled
+            assert _arc_length_to(line, entry) == pytest.approx(tail, abs=1.5e-3), settled
+            # The tail lies on the surface (the pad's top is z = 0): its axis within a
+            # capsule radius and a half millimetre of it, outside the tissue.
+            out = line[: int(tail / scene.suture.params.segment_length)]
+            assert np.all(np.abs(out[:, 2]) < 1.5e-3), settled
+            stitcher = scene.tools["endobot_1"]
+            assert isinstance(stitcher, Stitcher) and stitcher.needle_holder == 0
+            jaw, _ = p.getBasePositionAndOrientation(stitcher.jaws[0], physicsClientId=scene.client)
+            assert np.linalg.norm(line[-1] - np.asarray(jaw)) < 1e-3, settled
+            for _ in range(1000 if not settled else 0):
+                scene.step()
+                assert scene.suture.stretch() < 0.03
+        assert len(tissue.inside) >= 1
+    finally:
+        scene.close()
+
+
+def test_stitched_start_refuses_what_it_cannot_lay() -> None:
+    model = _model("bench.yaml")
+    with pytest.raises(SceneError) as err:
+        build_scene(model, start="knotted")
+    assert err.value.field == "suture.start" and "stitched" in err.value.valid
+    with pytest.raises(SceneError) as err:
+        build_scene(model, start="stitched", tail=0.29)  # longer than the thread allows
+    assert err.value.field == "tail"
+    with pytest.raises(SceneError) as err:
+        build_scene(model, start="stitched", stitch=("entry_9", "exit_2"))
+    assert err.value.field == "tissue.points.entry" and err.value.value == "entry_9"
+
+
+def test_stitch_points_named_or_nearest_the_wound_middle() -> None:
+    model = _model("bench.yaml")
+    entry, exit_ = stitch_points(model.tissue, ("entry_3", "exit_3"))
+    assert np.allclose(entry, [0.005, -0.004, 0.0]) and np.allclose(exit_, [0.005, 0.004, 0.0])
+    entry, exit_ = stitch_points(model.tissue)
+    assert np.allclose(entry, [0.0, -0.004, 0.0]) and np.allclose(exit_, [0.0, 0.004, 0.0])

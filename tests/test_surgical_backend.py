@@ -121,3 +121,60 @@ def test_first_measurement_is_at_rest_so_the_tare_is_steady() -> None:
             assert float(np.linalg.norm(drift)) < 0.5, (name, drift)
     finally:
         be.close()
+
+
+def test_stitched_backend_starts_with_the_stitch_made_and_the_needle_held() -> None:
+    """``pybullet-surgical-stitched`` (the registry name of ``start="stitched"``): the thread
+    is threaded through the tissue at reset, and the measured tool state is the physical
+    one: the stitcher's jaw 1 (the -x jaw, ``needle_holder`` 0) is closed on the needle,
+    jaw 2 open; the hook grasper's jaws open, hook retracted."""
+    from backends import registry
+
+    be = registry.create("pybullet-surgical-stitched")
+    assert isinstance(be, SurgicalPyBulletBackend) and be.start == "stitched"
+    try:
+        first = be.reset(load_procedure(BENCH).scene, 0)
+        assert be.scene is not None and be.scene.tissue is not None
+        assert be.scene.tissue.suture is be.scene.suture and len(be.scene.tissue.inside) >= 1
+        stitcher, grasper = be.scene.tools["endobot_1"], be.scene.tools["endobot_2"]
+        assert isinstance(stitcher, Stitcher) and isinstance(grasper, Grasper)
+        tool = first.robots["endobot_1"].tool
+        assert stitcher.opening == 0.0 and stitcher.needle_holder == 0
+        assert (tool.kind, tool.jaw_closed, tool.jaw2_closed) == ("stitcher", True, False)
+        hook = first.robots["endobot_2"].tool
+        assert grasper.state is JawState.OPEN and grasper.hook_extension == 0.0
+        assert (hook.jaw_closed, hook.hook_extension) == (False, 0.0)
+        # Commanding the state it reports changes nothing; closing jaw 2 as well passes
+        # the needle (Fig. 4.3), and the report follows the physics.
+        _hold(be, {"endobot_1": ToolCommand(jaw_closed=True)}, 50)
+        assert stitcher.needle_holder == 0 and not stitcher.passing
+        _hold(be, {"endobot_1": ToolCommand(jaw_closed=True, jaw2_closed=True)}, 300)
+        assert stitcher.needle_holder == 1
+        _hold(be, {"endobot_1": ToolCommand(jaw_closed=False, jaw2_closed=True)}, 50)
+        assert stitcher.needle_holder == 1 and stitcher.opening == 0.0
+    finally:
+        be.close()
+
+
+def test_needle_start_reports_the_stitcher_closed_on_the_needle_too(scene_model) -> None:  # type: ignore[no-untyped-def]
+    be = SurgicalPyBulletBackend()
+    try:
+        first = be.reset(load_procedure(BENCH).scene, 0)
+        tool = first.robots["endobot_1"].tool
+        assert (tool.jaw_closed, tool.jaw2_closed) == (True, False)
+        assert be.scene is not None and be.scene.tissue is not None
+        assert be.scene.tissue.suture is None  # not threaded: the bite is still to be made
+    finally:
+        be.close()
+
+
+def test_bad_start_is_a_backend_error() -> None:
+    from backends.base import BackendError
+
+    be = SurgicalPyBulletBackend(start="knotted")
+    try:
+        with pytest.raises(BackendError) as err:
+            be.reset(load_procedure(BENCH).scene, 0)
+        assert "suture.start" in str(err.value)
+    finally:
+        be.close()

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from backends.base import BackendError
+from suture_engine.errors import SutureError
 from suture_engine.runtime.observation import (
     Command,
     CommandMode,
@@ -38,7 +39,13 @@ from suture_engine.runtime.observation import (
     scene_geometry,
 )
 
-__all__ = ["DEFAULT_BASES", "DEFAULT_Q0", "PyBulletBackend", "SurgicalPyBulletBackend"]
+__all__ = [
+    "DEFAULT_BASES",
+    "DEFAULT_Q0",
+    "PyBulletBackend",
+    "StitchedSurgicalPyBulletBackend",
+    "SurgicalPyBulletBackend",
+]
 
 DEFAULT_Q0 = (0.0, 0.0, 0.0, 0.08)
 """Start joints when the scene gives none [rad, rad, rad, m]."""
@@ -82,6 +89,15 @@ class PyBulletBackend:
             robots alone (the mounted tools' and thread's weight is not in the engine's
             gravity model, so the base-sensor tension estimate of a robots-only
             procedure would read it as tension). None: when the scene declares them.
+        start: the surgical scene's start state with a stitcher: ``"needle"`` (the thread
+            hangs from the needle in the stitcher's jaw), ``"stitched"`` (the stitch is
+            made: the thread runs through the tissue from entry to exit, ``tail`` lies out
+            of the entry point on the surface, the rest runs from the exit to the needle
+            in the stitcher's jaw), or None for the scene's ``suture.start``.
+        tail: the stitched start's tail out of the entry point [m].
+        stitch: names of the stitch's entry and exit points; None: ``entry``/``exit``,
+            else the numbered pair nearest the wound's middle
+            (:func:`backends.pybullet.scene.stitch_points`).
     """
 
     name = "pybullet"
@@ -95,6 +111,9 @@ class PyBulletBackend:
         q0: Mapping[str, tuple[float, ...]] | None = None,
         friction: bool = True,
         surgical_scene: bool | None = False,
+        start: str | None = None,
+        tail: float = 0.03,
+        stitch: tuple[str, str] | None = None,
     ) -> None:
         self.gui = gui
         self.dt = dt
@@ -109,6 +128,9 @@ class PyBulletBackend:
         self._geometry = SceneGeometry()
         self._p: Any = None
         self.surgical_scene = surgical_scene
+        self.start = start
+        self.tail = tail
+        self.stitch = stitch
         self.scene: Any = None
         """The :class:`backends.pybullet.scene.Scene` when the surgical scene is built."""
 
@@ -144,7 +166,7 @@ class PyBulletBackend:
         if self._wants_surgical_scene(scene):
             self._build_surgical_scene(scene, seed, ft_model)
             for name, (pos, _rpy, tool) in sorted(self._bases(scene).items()):
-                self._tools[name] = ToolState(kind=tool)
+                self._tools[name] = self._measured_tool(name, tool)
                 base_positions[name] = (float(pos[0]), float(pos[1]), float(pos[2]))
         else:
             client = p.connect(p.GUI if self.gui else p.DIRECT)
@@ -202,7 +224,10 @@ class PyBulletBackend:
         from backends.pybullet.scene import build_scene
         from backends.pybullet.sensors import Sensor
 
-        built = build_scene(scene, seed)
+        try:
+            built = build_scene(scene, seed, start=self.start, tail=self.tail, stitch=self.stitch)
+        except SutureError as exc:
+            raise BackendError(self.name, str(exc)) from None
         self.scene = built
         self.client = built.client
         for i, (name, sim) in enumerate(sorted(built.robots.items())):
@@ -213,6 +238,25 @@ class PyBulletBackend:
                 # build_scene makes ideal base sensors; give them the scene's noise and delay.
                 sim._ft = Sensor(ft_model, 6, np.random.default_rng(seed * 1000 + i))
             self.robots[name] = sim
+
+    def _measured_tool(self, name: str, kind: str) -> ToolState:
+        """The tool's state as its sensors report it, from the simulated tool.
+
+        A stitcher reports the jaw that holds the needle closed on it and the other one
+        open, as the skills read it (``jaw_closed`` is jaw 1, the -x jaw).
+        """
+        from backends.pybullet.tools import Grasper, JawState, Stitcher
+
+        tool = self.scene.tools.get(name) if self.scene is not None else None
+        if isinstance(tool, Stitcher):
+            closed = tool.opening == 0.0 and tool.needle_body >= 0
+            return ToolState(
+                kind, closed and tool.needle_holder == 0, closed and tool.needle_holder == 1
+            )
+        if isinstance(tool, Grasper):
+            jaw = tool.state in (JawState.CLOSED, JawState.CLOSING)
+            return ToolState(kind, jaw, False, tool.hook_extension)
+        return ToolState(kind=kind)
 
     def _physics_step(self) -> None:
         """One PyBullet step, with the surgical scene's pre-step hooks when it is built."""
@@ -415,4 +459,19 @@ class SurgicalPyBulletBackend(PyBulletBackend):
 
     def __init__(self, **kwargs: Any) -> None:
         kwargs.setdefault("surgical_scene", True)
+        super().__init__(**kwargs)
+
+
+class StitchedSurgicalPyBulletBackend(SurgicalPyBulletBackend):
+    """The surgical backend starting with the stitch made (``start="stitched"``).
+
+    Args:
+        kwargs: as :class:`PyBulletBackend` (``surgical_scene`` is True, ``start`` is
+            ``"stitched"``).
+    """
+
+    name = "pybullet-surgical-stitched"
+
+    def __init__(self, **kwargs: Any) -> None:
+        kwargs.setdefault("start", "stitched")
         super().__init__(**kwargs)

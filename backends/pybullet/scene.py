@@ -34,6 +34,7 @@ from backends.pybullet.suture import (
     PHYSICS_RATE,
     Suture,
     SutureParams,
+    _resample,
     configure_physics,
     knotted_path,
     straight_path,
@@ -44,11 +45,16 @@ from suture_engine.errors import SutureError
 
 __all__ = [
     "DEFAULT_SCENE",
+    "DEFAULT_TAIL",
+    "START_STATES",
     "PullResult",
     "Scene",
     "SceneError",
     "build_scene",
+    "channel_depth",
     "pull_ends",
+    "stitch_points",
+    "stitched_path",
 ]
 
 DEFAULT_SCENE: dict[str, Any] = {
@@ -90,6 +96,12 @@ _KD = np.array([2.0, 2.0, 0.05, 20.0])
 """Holding damping per joint [N*m*s/rad, N*m*s/rad, N*m*s/rad, N*s/m]."""
 _Q0 = (0.0, 0.0, 0.0, 0.08)
 """Start joints of the robots [rad, rad, rad, m]."""
+
+START_STATES = ("needle", "stitched")
+"""Start states of a scene with a stitcher: the thread hangs from the needle in the
+stitcher's jaw, or the stitch is already made (:func:`stitched_path`)."""
+DEFAULT_TAIL = 0.03
+"""Tail out of the entry point in the stitched start state [m]."""
 
 _KNOTS: dict[str, tuple[bool, ...]] = {
     "overhand": (False,),
@@ -164,7 +176,13 @@ def _vec(cfg: dict[str, Any], key: str, where: str) -> tuple[float, float, float
     return (float(v[0]), float(v[1]), float(v[2]))
 
 
-def build_scene(config: Any = None, seed: int = 0) -> Scene:
+def build_scene(
+    config: Any = None,
+    seed: int = 0,
+    start: str | None = None,
+    tail: float = DEFAULT_TAIL,
+    stitch: tuple[str, str] | None = None,
+) -> Scene:
     """Build the scene headless from the scene model or a plain dict.
 
     Args:
@@ -174,6 +192,13 @@ def build_scene(config: Any = None, seed: int = 0) -> Scene:
             by construction along a hand-built curve (:func:`knotted_path`).
         seed: seeds the scene's random generator (sensor noise, perturbations); the physics
             itself is deterministic.
+        start: with a scene model and a stitcher: ``"needle"`` (the thread hangs from the
+            needle in the stitcher's jaw), ``"stitched"`` (the stitch is already made: see
+            :func:`stitched_path`), or None for the model's ``suture.start`` (default
+            ``"needle"``).
+        tail: with ``start="stitched"``: the tail left out of the entry point [m].
+        stitch: names of the bite's entry and exit points; None for :func:`stitch_points`'
+            choice.
 
     Returns:
         The scene; graspers hold nothing yet and sit at the thread's ends.
@@ -184,7 +209,7 @@ def build_scene(config: Any = None, seed: int = 0) -> Scene:
     import pybullet as p
 
     if config is not None and hasattr(config, "robots"):
-        return _from_model(config, seed)
+        return _from_model(config, seed, start, tail, stitch)
     cfg = copy.deepcopy(DEFAULT_SCENE)
     for key, value in (config or {}).items():
         if key not in cfg:
@@ -210,10 +235,10 @@ def build_scene(config: Any = None, seed: int = 0) -> Scene:
         sut = cfg["suture"]
         length = float(sut["length"])
         params = SutureParams(length=length, n_segments=int(sut["segments"]))
-        start = np.array([-length / 2, -0.03, 0.02])
+        origin = (-length / 2, -0.03, 0.02)
         knot = sut.get("knot")
         if knot is None:
-            path = straight_path(tuple(start), (1.0, 0.0, 0.0), length)
+            path = straight_path(origin, (1.0, 0.0, 0.0), length)
         elif knot in _KNOTS:
             path = knotted_path(_KNOTS[knot], (0.0, -0.03, 0.03), float(sut["knot_scale"]), length)
         else:
@@ -249,29 +274,179 @@ def _quaternion(rpy: Any) -> tuple[float, float, float, float]:
     return (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
 
 
-def _stitch_points(tissue: Any) -> tuple[Any, Any]:
-    """Entry and exit points of the first bite [m]: named, or across the wound's middle."""
+def stitch_points(tissue: Any, names: tuple[str, str] | None = None) -> tuple[Any, Any]:
+    """Entry and exit points of the stitch [m].
+
+    Args:
+        tissue: the scene model's tissue.
+        names: the entry and exit points' names; None for the points named ``entry`` and
+            ``exit``, else the numbered pair (``entry_k``, ``exit_k``) whose middle is
+            nearest the wound's middle, else 4 mm either side of the wound's middle.
+
+    Raises:
+        SceneError: a named point is not in the tissue's points.
+    """
     points = dict(tissue.points)
-    entries = sorted(k for k in points if k == "entry" or k.startswith("entry_"))
-    exits = sorted(k for k in points if k == "exit" or k.startswith("exit_"))
-    if entries and exits:
-        return np.asarray(points[entries[0]], float), np.asarray(points[exits[0]], float)
+    if names is not None:
+        for field_name, key in zip(("entry", "exit"), names, strict=True):
+            if key not in points:
+                raise SceneError(f"tissue.points.{field_name}", key, sorted(points))
+        return np.asarray(points[names[0]], float), np.asarray(points[names[1]], float)
     a, b = np.asarray(tissue.wound.start, float), np.asarray(tissue.wound.end, float)
+    mid = (a + b) / 2
+    if "entry" in points and "exit" in points:
+        return np.asarray(points["entry"], float), np.asarray(points["exit"], float)
+    pairs = [
+        (np.asarray(points[k], float), np.asarray(points["exit_" + k[6:]], float))
+        for k in sorted(points)
+        if k.startswith("entry_") and "exit_" + k[6:] in points
+    ]
+    if pairs:
+        return min(pairs, key=lambda pq: float(np.linalg.norm((pq[0] + pq[1]) / 2 - mid)))
     n = np.asarray(tissue.normal, float)
     across = np.cross(n, b - a)
     across = across / np.linalg.norm(across) * 4e-3
-    mid = (a + b) / 2
     return mid - across, mid + across
 
 
-def _from_model(model: Any, seed: int) -> Scene:
+def channel_depth(bite: float) -> float:
+    """Depth of the stitch channel at mid-span [m] for a bite ``bite`` [m] long.
+
+    A sixteenth of the bite, at most 3 mm: the scene's thread is made of 7.5 mm capsules
+    that cannot follow a channel curved more tightly than that (with an 8 mm bite 3 mm
+    deep, the guidance dragged the tail 8 mm into the tissue while settling).
+    """
+    return min(3e-3, bite / 16)
+
+
+def _polyline_length(points: Any) -> float:
+    return float(np.linalg.norm(np.diff(np.asarray(points, float), axis=0), axis=1).sum())
+
+
+def stitched_path(
+    channel: Any,
+    normal: Any,
+    lift: float,
+    tail: float,
+    jaw: Any,
+    jaw_axis: Any,
+    length: float,
+    segment: float,
+) -> Any:
+    """The polyline of a thread whose stitch is made [m] (tail end first).
+
+    The tail lies on the surface (``lift`` [m] above it) for ``tail`` [m] out of the
+    entry point, away from the exit; the thread follows the stitch ``channel`` (entry to
+    exit) and then runs to the needle's swaged end at ``jaw`` [m], its last ``segment``
+    [m] along ``jaw_axis``. What is left over lies in a slack loop
+    ``lift`` above the surface: first straight on past the exit, then back under the jaw,
+    then up to it. The thread is almost weightless (the mass-scaled weight is cancelled),
+    so it stays where it is laid.
+
+    Args:
+        channel: M×3 stitch channel from the entry to the exit point [m].
+        normal: outward unit surface normal.
+        lift: height of the thread's axis above the surface [m].
+        tail: tail length out of the entry point [m].
+        jaw: the needle's swaged end [m] (in the stitcher's jaw).
+        jaw_axis: unit direction of the thread's last segment, into the jaw.
+        length: thread length [m].
+        segment: one capsule's length [m].
+
+    Raises:
+        SceneError: the thread is too short to reach the jaw with this tail.
+    """
+    channel = np.asarray(channel, float)
+    n = np.asarray(normal, float)
+    up = n * lift
+    entry, exit_ = channel[0], channel[-1]
+    along = exit_ - entry
+    along = along - n * float(n @ along)
+    along = along / np.linalg.norm(along)
+    # The thread dips to the channel over the last capsule length before the entry and
+    # rises from it over the first after the exit (those capsules pass through the pad).
+    stitched = np.vstack(
+        [
+            entry + up - along * tail,
+            entry + up - along * segment,
+            channel,
+            exit_ + up + along * segment,
+        ]
+    )
+    rest = length - _polyline_length(stitched) - 2 * segment
+    start = stitched[-1]
+    # The last two capsule lengths run straight into the jaw, so that the capsules laid
+    # tip to tip end on that straight leg whatever the slack (see ``short``).
+    axis = np.asarray(jaw_axis, float)
+    leg = 2 * segment
+    j1 = np.asarray(jaw, float) - axis * leg
+    below = j1 - n * float(n @ (j1 - start))
+    if rest < float(np.linalg.norm(j1 - start)) - 1e-9:
+        raise SceneError("tail", tail, [f"<= {length - _polyline_length(stitched):.3g} m"])
+
+    side = np.cross(n, along)
+    side = side * float(side @ (below - start))
+
+    def route(k: float) -> Any:
+        """Detours of increasing length: k in [0, 1] bends towards ``below``, k > 1 goes
+        k - 1 [m] on past the exit first, then across, then back to ``below``. No acute
+        corners: the capsules laid tip to tip along it then move continuously with k."""
+        if k <= 1.0:
+            return np.vstack([start, (1 - k) * (start + j1) / 2 + k * below, j1])
+        far = start + along * (k - 1.0)
+        return np.vstack([start, far, far + side, below, j1])
+
+    count = round(length / segment)
+    end = np.asarray(jaw, float)
+
+    def short(k: float) -> bool:
+        """Whether the capsules laid tip to tip along the route pass the jaw (they cut
+        the route's corners, so the route must be longer than the thread)."""
+        full = np.vstack([stitched, route(k)[1:], end])
+        last = _resample(full, count, segment)[-1] - end
+        on_leg = float(np.linalg.norm(np.cross(last, axis))) < 1e-9 and float(last @ axis) > -leg
+        return on_leg and float(last @ axis) >= 0.0
+
+    lo, hi = 0.0, 1.0
+    if short(1.0):
+        lo, hi = 1.0, 1.0 + rest
+    for _ in range(40):
+        mid = (lo + hi) / 2
+        lo, hi = (mid, hi) if short(mid) else (lo, mid)
+    return np.vstack([stitched, route(hi)[1:], end])
+
+
+def _from_model(
+    model: Any,
+    seed: int,
+    start: str | None = None,
+    tail: float = DEFAULT_TAIL,
+    stitch: tuple[str, str] | None = None,
+) -> Scene:
     """Build the scene from the language's scene model (robots, tissue, suture)."""
+    import pybullet as p
+
+    if start is None:
+        start = getattr(model.suture, "start", None) or "needle"
+    if start not in START_STATES:
+        raise SceneError("suture.start", start, list(START_STATES))
+    entry, exit_ = stitch_points(model.tissue, stitch)
+    client = p.connect(p.DIRECT)
+    try:
+        return _build_model(client, model, seed, start, tail, entry, exit_)
+    except BaseException:
+        p.disconnect(physicsClientId=client)
+        raise
+
+
+def _build_model(
+    client: int, model: Any, seed: int, start: str, tail: float, entry: Any, exit_: Any
+) -> Scene:
     import pybullet as p
 
     from backends.pybullet.robot import EndoBotSim
     from backends.pybullet.tools import BentTipGrasper
 
-    client = p.connect(p.DIRECT)
     configure_physics(client)
     robots: dict[str, Any] = {}
     hold: dict[str, tuple[float, float, float, float]] = {}
@@ -286,7 +461,6 @@ def _from_model(model: Any, seed: int) -> Scene:
         hold[name] = _Q0
     configure_physics(client)  # the robot sets its own time step; keep the suture's settings
 
-    entry, exit_ = _stitch_points(model.tissue)
     normal = np.asarray(model.tissue.normal, float)
     normal = normal / np.linalg.norm(normal)
     tissue = Tissue.create(
@@ -295,6 +469,7 @@ def _from_model(model: Any, seed: int) -> Scene:
         entry=tuple(entry),
         exit=tuple(exit_),
         normal=tuple(normal),
+        depth=channel_depth(float(np.linalg.norm(exit_ - entry))),
         size=(0.08, 0.08, 0.01),
     )
     params = SutureParams(
@@ -304,7 +479,28 @@ def _from_model(model: Any, seed: int) -> Scene:
     )
     stitchers = [n for n, spec in sorted(model.robots.items()) if spec.tool == "stitcher"]
     lift = normal * (params.collision_radius + 0.5e-3)
-    if stitchers:
+    threaded = not stitchers or start == "stitched"
+    if stitchers and start == "stitched":
+        tip, orn = robots[stitchers[0]].true_tool_pose()
+        jaw, _ = p.multiplyTransforms(
+            [float(v) for v in tip],
+            [float(v) for v in orn],
+            [-Stitcher.gap / 2, 0.0, 3e-3],
+            [0.0, 0.0, 0.0, 1.0],
+        )
+        # The thread leaves jaw 0 outwards (along the tip's -x), clear of the shaft.
+        axis = np.array(p.getMatrixFromQuaternion([float(v) for v in orn])).reshape(3, 3)[:, 0]
+        path = stitched_path(
+            tissue.channel,
+            normal,
+            float(np.linalg.norm(lift)),
+            tail,
+            np.asarray(jaw, float),
+            axis,
+            params.length,
+            params.segment_length,
+        )
+    elif stitchers:
         tip, _ = robots[stitchers[0]].true_tool_pose()
         tip = np.asarray(tip, float)
         back = np.cross(normal, exit_ - entry)
@@ -312,18 +508,18 @@ def _from_model(model: Any, seed: int) -> Scene:
         path = np.vstack([tip + back * params.length, tip])
     else:
         along = (exit_ - entry) / np.linalg.norm(exit_ - entry)
-        tail = (params.length - 0.02) / 2
+        half = (params.length - 0.02) / 2
         path = np.vstack(
             [
-                entry + lift - along * tail,
+                entry + lift - along * half,
                 entry + lift - along * 1e-3,
                 tissue.channel,
                 exit_ + lift + along * 1e-3,
-                exit_ + lift + along * tail,
+                exit_ + lift + along * half,
             ]
         )
     suture = Suture.create(client, path, params)
-    if not stitchers:
+    if threaded:
         tissue.thread(suture)
     scene = Scene(client=client, seed=seed, suture=suture, tissue=tissue, robots=robots, hold=hold)
     scene.rng = np.random.default_rng(seed)
@@ -334,7 +530,14 @@ def _from_model(model: Any, seed: int) -> Scene:
         quat = (float(orn[0]), float(orn[1]), float(orn[2]), float(orn[3]))
         tool: Tool
         if spec.tool == "stitcher":
-            tool = Stitcher.create(client, name, pos, quat, needle_body=suture.needle_body)
+            tool = Stitcher.create(
+                client,
+                name,
+                pos,
+                quat,
+                needle_body=suture.needle_body,
+                place_needle=start != "stitched",
+            )
         elif spec.tool == "bent-tip-grasper":
             tool = BentTipGrasper.create(client, name, pos, quat, suture=suture, hook=False)
         else:

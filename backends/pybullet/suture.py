@@ -285,14 +285,12 @@ def _resample(path: FloatArray, n: int, seg: float) -> FloatArray:
     The path is extended straight past its end if it is shorter than ``n * seg``.
     """
     path = np.asarray(path, dtype=float)
-    d = np.linalg.norm(np.diff(path, axis=0), axis=1)
-    s = np.concatenate([[0.0], np.cumsum(d)])
-    need = n * seg
-    if s[-1] < need:
-        tail = path[-1] - path[-2]
-        tail = tail / np.linalg.norm(tail)
-        path = np.vstack([path, path[-1] + tail * (need - s[-1] + seg)])
-        s = np.append(s, need + seg)
+    # Always continue the path straight past its end, far enough for every chord: the
+    # points then end on the extension exactly as on the path (a path only just long
+    # enough used to end with a differently placed point).
+    tail = path[-1] - path[-2]
+    tail = tail / np.linalg.norm(tail)
+    path = np.vstack([path, path[-1] + tail * (n + 1) * seg])
     # Walk the polyline placing points a chord ``seg`` apart, so the capsules' tips meet.
     pts = [path[0]]
     k = 0

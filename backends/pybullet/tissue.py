@@ -241,6 +241,14 @@ class Tissue:
             self.last_friction = self.last_sliding_speed = 0.0
             return
         vel = np.array([p.getBaseVelocity(sut.bodies[i], physicsClientId=c)[0] for i in inside])
+        axes = np.array(
+            [
+                p.getMatrixFromQuaternion(
+                    p.getBasePositionAndOrientation(sut.bodies[i], physicsClientId=c)[1]
+                )[2::3]
+                for i in inside
+            ]
+        )
         tan = tangent[inside]
         axial = np.einsum("ij,ij->i", vel, tan)
         l_dot = float(axial.mean())
@@ -269,8 +277,12 @@ class Tissue:
             p.changeConstraint(
                 anchor, jointChildPivot=pos[i].tolist(), maxForce=cap, physicsClientId=c
             )
+            # Guidance acts across the capsule's own axis as well as across the channel,
+            # so where a straight capsule cuts a curved channel it cannot push the thread
+            # along itself (only friction acts along the thread).
             err = pos[i] - q[i]
             err -= tan[row] * float(err @ tan[row])
+            err -= axes[row] * float(err @ axes[row])
             v_perp = vel[row] - tan[row] * axial[row]
             force = -self.k_lateral * err - c_lat * v_perp - c_visc * axial[row] * tan[row]
             p.applyExternalForce(

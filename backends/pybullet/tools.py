@@ -589,6 +589,7 @@ class Stitcher(Tool):
         position: Vec3 = (0.0, 0.0, 0.1),
         orientation: Quat = _IDENTITY,
         needle_body: int = -1,
+        place_needle: bool = True,
         **kwargs: float,
     ) -> Stitcher:
         """Add a stitcher to the world, jaws closed, the needle locked in jaw 0.
@@ -599,6 +600,8 @@ class Stitcher(Tool):
             position: tip centre (between the jaws), world frame [m].
             orientation: tip orientation; the jaws sit at ±``gap``/2 along its x.
             needle_body: body id of the needle (``Suture.needle_body``); -1 for none.
+            place_needle: move the needle into jaw 0's pose before locking it there; False
+                locks it where it lies (a thread laid to end at jaw 0 already put it there).
             **kwargs: ``gap`` [m], ``open_width`` [m], ``travel_time`` [s],
                 ``drive_force`` [N].
         """
@@ -621,8 +624,13 @@ class Stitcher(Tool):
             self._jaw_drives.append(-1)
         self._drive_jaws()
         if needle_body >= 0:
-            jaw_pos, jaw_orn = p.getBasePositionAndOrientation(self.jaws[0], physicsClientId=client)
-            p.resetBasePositionAndOrientation(needle_body, jaw_pos, jaw_orn, physicsClientId=client)
+            if place_needle:
+                jaw_pos, jaw_orn = p.getBasePositionAndOrientation(
+                    self.jaws[0], physicsClientId=client
+                )
+                p.resetBasePositionAndOrientation(
+                    needle_body, jaw_pos, jaw_orn, physicsClientId=client
+                )
             self._lock = self._attach(self.jaws[0], needle_body)
         return self
 
