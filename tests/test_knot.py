@@ -21,8 +21,10 @@ from suture_engine.suture.knot import (
     PlacementInfeasible,
     beta_max,
     bridge_tension,
+    knot_lay,
     placement_error,
     placement_trajectory,
+    post_straight,
     securing_directions,
     sliding_condition,
 )
@@ -314,3 +316,249 @@ def test_friction_lp_has_both_outcomes() -> None:
     assert sticks_by_lp(0.7, 0.8, 0.3)
     assert sticks_by_lp(0.3, 0.31, 0.0) is False  # frictionless: slides while beta < gamma
     assert sticks_by_lp(0.32, 0.31, 0.0)
+
+
+# --------------------------------------------------- knot lay (Fig. 7.4)
+#
+# Hand-built two-strand centerlines [mm]: strand 1 from the tail end to the tissue,
+# a stitch loop below, strand 2 from the tissue to the needle end. Suture diameter
+# 1 mm: where two strands cross, their axes are 1 mm apart (they touch).
+
+DIA = 1.0
+
+
+def _leg(x0: float, x1: float, yfun: object, n: int) -> np.ndarray:
+    xs = np.linspace(x0, x1, n)
+    return np.column_stack([xs, yfun(xs)])  # type: ignore[operator]
+
+
+def _arc(cx: float, cy: float, r: float, t0: float, t1: float, n: int = 40) -> np.ndarray:
+    t = np.linspace(t0, t1, n)
+    return np.column_stack([cx + r * np.cos(t), cy + r * np.sin(t)])
+
+
+def _bights_xy() -> tuple[np.ndarray, np.ndarray]:
+    """Two interlocked bights in the plane: strand 1's bend at +x, strand 2's at -x.
+
+    Strand 1's legs run at y = +-a(x), a from 1 (x <= -3) to 2 (x >= 3); strand 2's at
+    y = +-b(x), b from 2 (x <= -3) to 1 (x >= 3); the bends are half circles of radius
+    2 centred at (+-3, 0). Six projected crossings: each bend over the other's legs,
+    the legs over each other at x = 0.
+    """
+
+    def a(x: np.ndarray) -> np.ndarray:
+        return np.clip(1.5 + x / 6.0, 1.0, 2.0)
+
+    def b(x: np.ndarray) -> np.ndarray:
+        return np.clip(1.5 - x / 6.0, 1.0, 2.0)
+
+    s1 = np.vstack(
+        [
+            _leg(-20, 3, a, 90),
+            _arc(3, 0, 2, math.pi / 2, -math.pi / 2)[1:-1],
+            _leg(3, -12, lambda x: -a(x), 60),
+        ]
+    )
+    s2 = np.vstack(
+        [
+            _leg(12, -3, lambda x: -b(x), 60),
+            _arc(-3, 0, 2, -math.pi / 2, -3 * math.pi / 2)[1:-1],
+            _leg(-3, 20, b, 90),
+        ]
+    )
+    return s1, s2
+
+
+def _projected_crossings(p: np.ndarray, q: np.ndarray) -> list[tuple[float, float]]:
+    """Fractional indices (along p, along q) where the xy projections of p and q cross."""
+    out = []
+    for i in range(len(p) - 1):
+        for j in range(len(q) - 1):
+            m = np.column_stack([p[i + 1] - p[i], q[j] - q[j + 1]])
+            if abs(np.linalg.det(m)) < 1e-12:
+                continue
+            s, t = np.linalg.solve(m, q[j] - p[i])
+            if 0 <= s < 1 and 0 <= t < 1:
+                out.append((i + s, j + t))
+    return out
+
+
+def _lift(p: np.ndarray, q: np.ndarray, over: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """Heights: at the k-th crossing along p, p at +over[k] D/2 and q at -over[k] D/2."""
+    crossings = _projected_crossings(p, q)
+    assert len(crossings) == len(over)
+
+    def heights(n: int, knots: list[tuple[float, float]]) -> np.ndarray:
+        knots = sorted(knots)
+        u = [0.0, *(k for k, _ in knots), n - 1.0]
+        return np.interp(np.arange(n), u, [0.0, *(z for _, z in knots), 0.0])
+
+    zp = heights(len(p), [(s, o * DIA / 2) for (s, _), o in zip(crossings, over, strict=True)])
+    zq = heights(len(q), [(t, -o * DIA / 2) for (_, t), o in zip(crossings, over, strict=True)])
+    return np.column_stack([p, zp]), np.column_stack([q, zq])
+
+
+def _stitch_loop(end1: np.ndarray, start2: np.ndarray) -> np.ndarray:
+    """The thread through the tissue, well below and beside the knot, from end1's side."""
+    loop = np.array([(-14.0, -6.0, -4.0), (0.0, -8.0, -6.0), (14.0, -6.0, -4.0)])
+    assert end1[0] * start2[0] < 0
+    return loop if end1[0] < 0 else loop[::-1]
+
+
+def _join(s1: np.ndarray, s2: np.ndarray) -> np.ndarray:
+    return np.vstack([s1, _stitch_loop(s1[-1], s2[0]), s2])
+
+
+SQUARE_OVER = (1, -1, 1, 1, -1, 1)
+GRANNY_OVER = (1, -1, 1, -1, 1, -1)
+
+
+def square_lay(over: tuple[int, ...] = SQUARE_OVER) -> np.ndarray:
+    """Square knot laid flat: two interlocked bights (the reef knot's drawing) [mm]."""
+    return _join(*_lift(*_bights_xy(), over))
+
+
+def half_hitches_lay(turns: float = 2.0, pitch: float = 2.5) -> np.ndarray:
+    """Strand 1 a straight post along x; strand 2 wound ``turns`` times round it [mm].
+
+    The winding is a helix of radius D about the post's axis (touching it), entered from
+    below-left and left towards the needle end at the right.
+    """
+    post = _leg(-20, 10, lambda x: 0.0 * x, 120)
+    post = np.column_stack([post, np.zeros(len(post))])
+    x0 = -pitch * turns / 2
+    t = np.linspace(0.0, 1.0, int(60 * turns) + 1)
+    helix = np.column_stack(
+        [
+            x0 + pitch * turns * t,
+            -DIA * np.cos(2 * math.pi * turns * t),
+            DIA * np.sin(2 * math.pi * turns * t),
+        ]
+    )
+    approach = np.array([(-10.0, -6.0, -1.0), (x0 - 2.0, -3.0, 0.0)])
+    leave = np.array([(helix[-1, 0] + 3.0, -4.0, 0.0), (20.0, -8.0, 0.0)])
+    return np.vstack([post, _stitch_loop(post[-1], approach[0]), approach, helix, leave])
+
+
+def test_hand_built_lays_have_the_intended_topology() -> None:
+    """The test curves are what they claim: the classifier (closure far away) agrees."""
+    from suture_engine.suture.topology import classify_knot
+
+    assert classify_knot(square_lay() * 1e-3).type == "square"
+    assert classify_knot(square_lay(GRANNY_OVER) * 1e-3).type == "granny"
+
+
+@pytest.mark.parametrize("over", [SQUARE_OVER, GRANNY_OVER])
+def test_square_lay_keeps_both_strands_bent(over: tuple[int, ...]) -> None:
+    lay = knot_lay(square_lay(over) * 1e-3, diameter=DIA * 1e-3)
+    assert lay.lay == "square"
+    assert lay.post_straight is True
+    assert post_straight(square_lay(over) * 1e-3, diameter=DIA * 1e-3) is True
+    assert lay.straight_strand is None
+    # each bight: chord = the leg spacing at its far crossing (2 mm), arc ~ 20 mm
+    assert max(lay.straightness) < 0.3
+    (_, a1), (b0, _) = lay.zones
+    assert a1 < b0  # strand 1's zone ends before strand 2's begins
+
+
+@pytest.mark.parametrize("turns", [1.0, 2.0, 3.0])
+def test_half_hitches_straighten_one_strand(turns: float) -> None:
+    pts = half_hitches_lay(turns) * 1e-3
+    lay = knot_lay(pts, diameter=DIA * 1e-3)
+    assert lay.lay == "half-hitches"
+    assert lay.post_straight is False
+    assert post_straight(pts, diameter=DIA * 1e-3) is False
+    assert lay.straight_strand == 1
+    assert lay.straightness[0] > 0.99
+    # the wound strand's zone is the helix: chord / arc = pitch / sqrt((2 pi D)^2 + pitch^2)
+    assert lay.straightness[1] == pytest.approx(2.5 / math.hypot(2 * math.pi * DIA, 2.5), abs=0.01)
+
+
+def test_lay_is_invariant_under_rigid_motion_scale_and_reversal() -> None:
+    from scipy.spatial.transform import Rotation
+
+    rot = Rotation.from_euler("xyz", [0.3, -1.1, 2.0]).as_matrix()
+    for pts, expected in ((square_lay(), "square"), (half_hitches_lay(), "half-hitches")):
+        moved = 7.0 * pts @ rot.T + np.array([0.1, -2.0, 5.0])
+        lay = knot_lay(moved, diameter=7.0 * DIA)
+        ref = knot_lay(pts, diameter=DIA)
+        assert lay.lay == expected
+        np.testing.assert_allclose(lay.straightness, ref.straightness, rtol=1e-9)
+        back = knot_lay(pts[::-1], diameter=DIA)
+        assert back.lay == expected
+        np.testing.assert_allclose(back.straightness, ref.straightness[::-1], rtol=1e-9)
+        if expected == "half-hitches":
+            assert back.straight_strand == 2
+
+
+def test_lay_does_not_depend_on_the_sampling() -> None:
+    """Twice as many points on the same curve: same lay, close straightness.
+
+    A zone ends at closest points, which move a little with the sampling of a curve.
+    """
+    for pts in (square_lay(), half_hitches_lay()):
+        fine = np.empty((2 * len(pts) - 1, 3))
+        fine[0::2] = pts
+        fine[1::2] = 0.5 * (pts[1:] + pts[:-1])
+        a, b = knot_lay(pts, diameter=DIA), knot_lay(fine, diameter=DIA)
+        assert a.lay == b.lay
+        np.testing.assert_allclose(a.straightness, b.straightness, atol=0.01)
+
+
+def test_strands_that_do_not_touch_are_no_knot() -> None:
+    s1, s2 = _bights_xy()
+    far = np.column_stack([s2, np.full(len(s2), 5.0)])  # 5 mm above strand 1
+    pts = _join(np.column_stack([s1, np.zeros(len(s1))]), far)
+    lay = knot_lay(pts, diameter=DIA)
+    assert lay.lay == "no-knot" and lay.post_straight is None
+    assert post_straight(pts, diameter=DIA) is None
+
+
+def test_strands_side_by_side_are_undetermined() -> None:
+    """Two straight strands touching along a stretch: no knot shape to judge."""
+    s1 = np.column_stack([np.linspace(-20, 10, 60), np.zeros(60), np.zeros(60)])
+    s2 = np.column_stack([np.linspace(8, -10, 60), np.full(60, DIA), np.zeros(60)])
+    loop = np.array([(14.0, -6.0, -4.0), (12.0, 6.0, 6.0), (8.0, DIA, 0.0)])
+    lay = knot_lay(np.vstack([s1, loop, s2]), diameter=DIA)
+    assert lay.lay == "undetermined"
+    assert lay.post_straight is None
+    assert min(lay.straightness) > 0.99
+
+
+def test_tight_bend_alone_is_not_a_contact() -> None:
+    """A single hairpin of radius D touches nothing but itself near the bend."""
+    hairpin = np.vstack(
+        [
+            _leg(-20, 0, lambda x: 0.0 * x + DIA, 40),
+            _arc(0, 0, DIA, math.pi / 2, -math.pi / 2, 20)[1:-1],
+            _leg(0, -20, lambda x: 0.0 * x - DIA, 40),
+        ]
+    )
+    pts = np.column_stack([hairpin, np.zeros(len(hairpin))])
+    # legs 2 D apart: not touching at 1.5 D contact distance
+    assert knot_lay(pts, diameter=DIA).lay == "no-knot"
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.floats(min_value=-1.0, max_value=1.0), min_size=12, max_size=12))
+def test_segment_distance_matches_dense_sampling(c: list[float]) -> None:
+    from suture_engine.suture.knot import _segment_distances
+
+    p0, p1, q0, q1 = (np.array(c[3 * k : 3 * k + 3]) for k in range(4))
+    got = float(_segment_distances(p0, p1, q0, q1))
+    s = np.linspace(0.0, 1.0, 401)
+    ps = p0 + s[:, None] * (p1 - p0)
+    qs = q0 + s[:, None] * (q1 - q0)
+    brute = float(np.min(np.linalg.norm(ps[:, None, :] - qs[None, :, :], axis=-1)))
+    length = float(np.linalg.norm(p1 - p0) + np.linalg.norm(q1 - q0))
+    assert got <= brute + 1e-9
+    assert got >= brute - length / 400 - 1e-9  # the grid's resolution
+
+
+def test_knot_lay_bad_arguments() -> None:
+    with pytest.raises(ValueError):
+        knot_lay(np.zeros((1, 3)), diameter=1e-3)
+    with pytest.raises(ValueError):
+        knot_lay(square_lay(), diameter=0.0)
+    with pytest.raises(ValueError):
+        knot_lay(np.full((4, 3), np.nan), diameter=1e-3)

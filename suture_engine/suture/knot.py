@@ -30,7 +30,12 @@ The bridge tension ``F_a sin b / sin g`` grows with beta, so the
 minimum-tension choice is the smallest admissible pulling angle
 ``beta = beta_min`` (4.40; the thesis takes beta_min = 0, pulling parallel
 to the tissue).
-"""
+
+The *lay* of a tied knot (:func:`knot_lay`, :func:`post_straight`): with opposite
+pulls on its two throws a square knot lies as two interlocked bights, both strands
+turning inside the knot; with the second throw pulled the wrong way (7.4) one strand
+is pulled straight and the other is wound round it, two half hitches (Fig. 7.4),
+which slide. It is judged from the centerline where the suture touches itself.
 
 from __future__ import annotations
 
@@ -43,14 +48,17 @@ from numpy.typing import ArrayLike, NDArray
 from suture_engine.errors import SutureError
 
 __all__ = [
+    "KnotLay",
     "PlacementError",
     "PlacementInfeasible",
     "PlacementTrajectory",
     "ThrowDirections",
     "beta_max",
     "bridge_tension",
+    "knot_lay",
     "placement_error",
     "placement_trajectory",
+    "post_straight",
     "securing_directions",
     "sliding_condition",
 ]
@@ -364,3 +372,200 @@ def placement_error(
     height = float(d @ n)
     lateral = float(np.linalg.norm(d - height * n))
     return PlacementError(height=height, lateral=lateral, total=float(np.linalg.norm(d)))
+
+
+# ------------------------------------------------------------ knot lay (Fig. 7.4)
+
+
+class KnotLay(NamedTuple):
+    """How two tied strands lie in their knot: square lay or two half hitches (Fig. 7.4).
+
+    The knot is where the suture touches itself: segment pairs whose axes come within
+    the contact distance, and that are farther apart along the suture than that (so
+    a tight bend does not count). The stitch loop (through the tissue) is the longest
+    stretch between two touching segments; it separates strand 1 (from the first
+    point) from strand 2. Each strand's *knot zone* runs along it from its first to
+    its last contact point (the closest point of its first touching segment to the
+    segments it touches, and likewise at the end), and its straightness is chord /
+    arc length over that zone (1 = straight).
+
+    - ``"square"``: both strands turn inside the knot (straightness below the
+      threshold): each is a bight round the other, as in a square (or granny) knot
+      laid with opposite pulls.
+    - ``"half-hitches"``: one strand runs straight through the knot and the other is
+      wrapped round it: a square knot capsized by pulling the second throw the wrong
+      way (7.4, Fig. 7.4). It slides along the straight strand.
+    - ``"undetermined"``: both strands straight (they only touch side by side).
+    - ``"no-knot"``: the strands do not touch, or only one stretch touches.
+
+    Attributes:
+        lay: one of the four above.
+        post_straight: the run summary's field: True for the square lay, False for
+            two half hitches, None otherwise. (The issue's wording: the post stays
+            straight in a square knot and is bent round the other strand in two
+            half hitches. Geometrically, in two half hitches one strand, called
+            ``straight_strand`` here, is straight and the other wraps it.)
+        straightness: chord / arc over each strand's knot zone [-], strand 1 first;
+            empty for ``"no-knot"``.
+        straight_strand: 1 or 2 for two half hitches (the strand that is straight),
+            else None.
+        zones: each strand's knot zone as (first, last) segment index.
+        contact_distance: the contact distance used [m].
+    """
+
+    lay: Literal["square", "half-hitches", "undetermined", "no-knot"]
+    post_straight: bool | None
+    straightness: tuple[float, ...]
+    straight_strand: int | None
+    zones: tuple[tuple[int, int], ...]
+    contact_distance: float
+
+
+def _segment_distances(
+    p0: NDArray[np.float64],
+    p1: NDArray[np.float64],
+    q0: NDArray[np.float64],
+    q1: NDArray[np.float64],
+) -> NDArray[np.float64]:
+    """Distances between segments [p0, p1] and [q0, q1], broadcast over leading axes [m]."""
+    return _segment_closest(p0, p1, q0, q1)[0]
+
+
+def _segment_closest(
+    p0: NDArray[np.float64],
+    p1: NDArray[np.float64],
+    q0: NDArray[np.float64],
+    q1: NDArray[np.float64],
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Distance [m] and closest-point parameters s, t in [0, 1] of two segments.
+
+    Closest points of two segments: minimise ``|p0 + s d1 - q0 - t d2|`` over
+    s, t in [0, 1] (clamp s, solve t, clamp t, re-solve s).
+    """
+    d1, d2, r = p1 - p0, q1 - q0, p0 - q0
+    a = np.einsum("...k,...k->...", d1, d1)
+    e = np.einsum("...k,...k->...", d2, d2)
+    f = np.einsum("...k,...k->...", d2, r)
+    c = np.einsum("...k,...k->...", d1, r)
+    b = np.einsum("...k,...k->...", d1, d2)
+    tiny = 1e-300
+    a_ok, e_ok = a > tiny, e > tiny
+    denom = a * e - b * b
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(
+            denom > 1e-12 * a * e,
+            np.clip((b * f - c * e) / np.where(denom > 0, denom, 1), 0, 1),
+            0.0,
+        )
+        s = np.where(e_ok, s, np.clip(-c / np.where(a_ok, a, 1), 0, 1))  # q a point
+        t = np.where(e_ok, (b * s + f) / np.where(e_ok, e, 1), 0.0)
+        s_lo = np.clip(-c / np.where(a_ok, a, 1), 0, 1)
+        s_hi = np.clip((b - c) / np.where(a_ok, a, 1), 0, 1)
+        s = np.where(t < 0, s_lo, np.where(t > 1, s_hi, s))
+        t = np.clip(t, 0, 1)
+        s = np.where(a_ok, s, 0.0)  # p a point
+        t = np.where(a_ok, t, np.clip(f / np.where(e_ok, e, 1), 0, 1))
+    gap = r + s[..., None] * d1 - t[..., None] * d2
+    return np.asarray(np.linalg.norm(gap, axis=-1), dtype=np.float64), s, t
+
+
+def knot_lay(
+    points: ArrayLike,
+    *,
+    diameter: float,
+    contact_factor: float = 1.5,
+    straight_threshold: float = 0.9,
+) -> KnotLay:
+    """Square lay or two half hitches, from the suture's centerline (Fig. 7.4).
+
+    Meant for the ground-truth centerline of a stitch tied off: strand 1 from the
+    first point to the tissue, the stitch loop, strand 2 from the tissue to the last
+    point, the two strands knotted round each other (see :class:`KnotLay` for the
+    definition). Scale-free apart from the contact distance, invariant under rigid
+    motions and under reversing the point order (which swaps the strands).
+
+    Args:
+        points: N x 3 centerline [m], N >= 2.
+        diameter: suture diameter [m] (the simulator's contact diameter for a
+            simulated thread): axes of touching strands are about this far apart.
+        contact_factor: contact distance / diameter [-].
+        straight_threshold: straightness at or above which a strand is straight [-].
+
+    Returns:
+        the :class:`KnotLay`.
+
+    Raises:
+        ValueError: bad points or non-positive diameter.
+    """
+    pts = np.asarray(points, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3 or len(pts) < 2 or not np.all(np.isfinite(pts)):
+        raise ValueError(f"points must be a finite N x 3 array with N >= 2, got {pts.shape}")
+    if not (diameter > 0 and contact_factor > 0):
+        raise ValueError("diameter and contact_factor must be > 0")
+    contact = contact_factor * diameter
+    seg_len = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    keep = np.concatenate([[True], seg_len > 1e-12 * max(float(seg_len.max()), 1e-300)])
+    pts = pts[keep]
+    seg_len = np.linalg.norm(np.diff(pts, axis=0), axis=1)
+    arc = np.concatenate([[0.0], np.cumsum(seg_len)])
+    mid = 0.5 * (arc[:-1] + arc[1:])
+    a0, a1 = pts[:-1], pts[1:]
+    dist, par, _ = _segment_closest(a0[:, None, :], a1[:, None, :], a0[None, :, :], a1[None, :, :])
+    # farther apart along the suture than a half turn round a neighbour (pi x contact)
+    apart = np.abs(mid[:, None] - mid[None, :]) - 0.5 * (seg_len[:, None] + seg_len[None, :])
+    pairs = (dist < contact) & (apart > math.pi * contact)
+    touching = np.any(pairs, axis=1)
+    idx = np.flatnonzero(touching)
+    none = KnotLay("no-knot", None, (), None, (), contact)
+    if len(idx) < 2:
+        return none
+    gaps = arc[idx[1:]] - arc[idx[:-1] + 1]
+    k = int(np.argmax(gaps))
+    if gaps[k] <= 0:
+        return none
+    zones = ((int(idx[0]), int(idx[k])), (int(idx[k + 1]), int(idx[-1])))
+    straight: list[float] = []
+    for first, last in zones:
+        # from the first segment's earliest closest point to the last one's latest
+        s0 = float(np.min(par[first][pairs[first]]))
+        s1 = float(np.max(par[last][pairs[last]]))
+        start = pts[first] + s0 * (pts[first + 1] - pts[first])
+        end = pts[last] + s1 * (pts[last + 1] - pts[last])
+        length = float(arc[last] + s1 * seg_len[last] - arc[first] - s0 * seg_len[first])
+        chord = float(np.linalg.norm(end - start))
+        straight.append(chord / length if length > 0 else 1.0)
+    is_straight = [s >= straight_threshold for s in straight]
+    if all(is_straight):
+        lay: Literal["square", "half-hitches", "undetermined", "no-knot"] = "undetermined"
+        post, which = None, None
+    elif any(is_straight):
+        lay, post, which = "half-hitches", False, 1 + is_straight.index(True)
+    else:
+        lay, post, which = "square", True, None
+    return KnotLay(lay, post, tuple(straight), which, zones, contact)
+
+
+def post_straight(
+    points: ArrayLike,
+    *,
+    diameter: float,
+    contact_factor: float = 1.5,
+    straight_threshold: float = 0.9,
+) -> bool | None:
+    """The run summary's ``post_straight``: True for a square lay, False for two half hitches.
+
+    ``knot_lay(...).post_straight`` (see :class:`KnotLay`): None when the strands form
+    no knot or the lay is undetermined.
+
+    Args:
+        points: N x 3 centerline [m].
+        diameter: suture (contact) diameter [m].
+        contact_factor: contact distance / diameter [-].
+        straight_threshold: straightness at or above which a strand is straight [-].
+    """
+    return knot_lay(
+        points,
+        diameter=diameter,
+        contact_factor=contact_factor,
+        straight_threshold=straight_threshold,
+    ).post_straight
