@@ -36,6 +36,7 @@ pulls on its two throws a square knot lies as two interlocked bights, both stran
 turning inside the knot; with the second throw pulled the wrong way (7.4) one strand
 is pulled straight and the other is wound round it, two half hitches (Fig. 7.4),
 which slide. It is judged from the centerline where the suture touches itself.
+"""
 
 from __future__ import annotations
 
