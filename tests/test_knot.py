@@ -301,7 +301,7 @@ def sticks_by_lp(beta: float, gamma: float, mu: float) -> bool:
     return bool(res.status == 0)
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=120, deadline=None)
 @given(angles, angles, frictions)
 def test_sliding_condition_matches_the_friction_lp(beta: float, gamma: float, mu: float) -> None:
     lo, hi = sticks_by_lp(beta, gamma, mu * (1 - 1e-6)), sticks_by_lp(beta, gamma, mu * (1 + 1e-6))
@@ -371,16 +371,20 @@ def _bights_xy() -> tuple[np.ndarray, np.ndarray]:
 
 def _projected_crossings(p: np.ndarray, q: np.ndarray) -> list[tuple[float, float]]:
     """Fractional indices (along p, along q) where the xy projections of p and q cross."""
-    out = []
-    for i in range(len(p) - 1):
-        for j in range(len(q) - 1):
-            m = np.column_stack([p[i + 1] - p[i], q[j] - q[j + 1]])
-            if abs(np.linalg.det(m)) < 1e-12:
-                continue
-            s, t = np.linalg.solve(m, q[j] - p[i])
-            if 0 <= s < 1 and 0 <= t < 1:
-                out.append((i + s, j + t))
-    return out
+    d1 = (p[1:] - p[:-1])[:, None, :]  # (n, 1, 2)
+    d2 = (q[1:] - q[:-1])[None, :, :]  # (1, m, 2)
+    r = q[:-1][None, :, :] - p[:-1][:, None, :]  # (n, m, 2)
+
+    def cross(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+        return u[..., 0] * v[..., 1] - u[..., 1] * v[..., 0]
+
+    den = cross(d1, d2)
+    ok = np.abs(den) > 1e-12
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s = np.where(ok, cross(r, d2) / den, -1.0)
+        t = np.where(ok, cross(r, d1) / den, -1.0)
+    hit = (s >= 0) & (s < 1) & (t >= 0) & (t < 1)
+    return [(i + s[i, j], j + t[i, j]) for i, j in zip(*np.nonzero(hit), strict=True)]
 
 
 def _lift(p: np.ndarray, q: np.ndarray, over: tuple[int, ...]) -> tuple[np.ndarray, np.ndarray]:
@@ -539,20 +543,20 @@ def test_tight_bend_alone_is_not_a_contact() -> None:
     assert knot_lay(pts, diameter=DIA).lay == "no-knot"
 
 
-@settings(max_examples=200, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(st.lists(st.floats(min_value=-1.0, max_value=1.0), min_size=12, max_size=12))
 def test_segment_distance_matches_dense_sampling(c: list[float]) -> None:
     from suture_engine.suture.knot import _segment_distances
 
     p0, p1, q0, q1 = (np.array(c[3 * k : 3 * k + 3]) for k in range(4))
     got = float(_segment_distances(p0, p1, q0, q1))
-    s = np.linspace(0.0, 1.0, 401)
+    s = np.linspace(0.0, 1.0, 201)
     ps = p0 + s[:, None] * (p1 - p0)
     qs = q0 + s[:, None] * (q1 - q0)
     brute = float(np.min(np.linalg.norm(ps[:, None, :] - qs[None, :, :], axis=-1)))
     length = float(np.linalg.norm(p1 - p0) + np.linalg.norm(q1 - q0))
     assert got <= brute + 1e-9
-    assert got >= brute - length / 400 - 1e-9  # the grid's resolution
+    assert got >= brute - length / 200 - 1e-9  # the grid's resolution
 
 
 def test_knot_lay_bad_arguments() -> None:

@@ -59,6 +59,7 @@ __all__ = [
     "TensionRun",
     "run_tension_experiment",
     "thesis_cases",
+    "windup_force",
 ]
 
 FloatArray = NDArray[np.float64]
@@ -123,6 +124,29 @@ THESIS_TABLE: dict[str, tuple[float, float]] = {
     "Kp=0.2, Ki=0.3, Kv=2000, ramped": (1.93, 15.83),
 }
 """The thesis' (e_RMS [N], e_inf [N]) per row, Tables 7.3-7.5 (step to -15 N)."""
+
+
+def windup_force(ki: float, kv: float, error: float, slack: float) -> float:
+    """Force command the integrator holds when a slack suture comes taut [N].
+
+    Not from the thesis; the mechanism behind this simulation's peaks once Kv is large.
+    While the suture is slack the force error is constant (``error`` = F_des for a step,
+    the lead for the modified reference), so (7.22) with K_p = 0 gives
+    ``u = Ki error t - Kv xdot``. With the tip's inertia negligible against the damping
+    (time constant m / Kv, about a millisecond here) the tip creeps at
+    ``xdot = Ki error t / Kv``, covers the slack s at ``t_c = sqrt(2 Kv s / (Ki error))``,
+    and the integral has then reached ``Ki error t_c = sqrt(2 Ki error Kv s)``. Once the
+    taut suture stops the tip, the damping term vanishes and the tension rises to that
+    integral: more damping lets the integral wind up longer, so above
+    ``Kv = F_des^2 / (2 Ki error s)`` the peak grows like sqrt(Kv).
+
+    Args:
+        ki: integral gain K_i [1/s].
+        kv: active damping gain K_v [N*s/m].
+        error: force error while slack [N].
+        slack: slack to take up [m].
+    """
+    return math.sqrt(2.0 * ki * error * kv * slack)
 
 
 class TensionRun(NamedTuple):
