@@ -1,0 +1,357 @@
+"""Square-knot success rate per ligation algorithm under perturbations (issue #6).
+
+Runs ``procedures/square-knot.yaml --set algorithm=N`` on the surgical PyBullet backend,
+``--seeds`` runs per algorithm, each with its own perturbation drawn from
+``numpy.random.SeedSequence([base_seed, algorithm, run])`` (so a run's inputs do not
+depend on the number of workers or on the other algorithms):
+
+- base calibration error: each robot's actual base displaced from the declared one by a
+  vector with independent N(0, sigma^2) components, sigma = 1 mm (the skills' model is
+  off by that much);
+- joint friction: every joint's friction scaled by one factor ~ U(0.7, 1.3);
+- suture stiffness: the thread's stiffness scaled by one factor ~ U(0.8, 1.2).
+
+A perturbation is passed to the backend only if its constructor takes the option (see
+``OPTION_NAMES``); the table says which ones were applied, so an unperturbed run is never
+reported as perturbed.
+
+Success = the run's outcome is ``succeeded`` AND the ground-truth classifier (the
+``knot`` entry of ``summary.json``, from the simulated thread, never the procedure's
+belief) says ``square``. The rate is printed with its 95 % Wilson score interval
+(``suture_engine.report.sweep.wilson_interval``); every run's row goes to
+``OUT/results.csv``.
+
+Usage::
+
+    python benchmarks/knot_success.py [--seeds 20] [--algorithms 1,2,3] [--max-time 300]
+        [--workers 2] [--out runs/knot-success] [--backend pybullet-surgical]
+        [--base-seed 0] [--no-perturb]
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import csv
+import inspect
+import io
+import math
+import sys
+import time
+from collections import Counter
+from collections.abc import Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+PROCEDURE = ROOT / "procedures" / "square-knot.yaml"
+ROBOTS = ("endobot_1", "endobot_2")
+
+BASE_SIGMA = 1e-3
+"""Standard deviation of each component of a base calibration error [m]."""
+FRICTION_RANGE = (0.7, 1.3)
+"""Range of the joint friction scale [-] (+-30 %)."""
+STIFFNESS_RANGE = (0.8, 1.2)
+"""Range of the suture stiffness scale [-] (+-20 %)."""
+
+OPTION_NAMES: dict[str, tuple[str, ...]] = {
+    "base_error": ("base_error", "base_offsets", "base_offset", "calibration_error"),
+    "friction_scale": ("friction_scale", "joint_friction_scale"),
+    "stiffness_scale": ("suture_stiffness_scale", "stiffness_scale"),
+}
+"""Backend constructor options that may carry each perturbation, first match used."""
+
+
+@dataclass(frozen=True)
+class Perturbation:
+    """One run's perturbation.
+
+    Attributes:
+        base_error: per robot, the actual base's displacement from the declared one [m].
+        friction_scale: joint friction factor [-].
+        stiffness_scale: suture stiffness factor [-].
+    """
+
+    base_error: Mapping[str, tuple[float, float, float]] = field(default_factory=dict)
+    friction_scale: float = 1.0
+    stiffness_scale: float = 1.0
+
+
+def draw_perturbation(rng: np.random.Generator, robots: Sequence[str] = ROBOTS) -> Perturbation:
+    """Draw one perturbation (module doc) from ``rng``."""
+    base = {r: tuple(float(v) for v in rng.normal(0.0, BASE_SIGMA, 3)) for r in robots}
+    return Perturbation(
+        base_error=base,  # type: ignore[arg-type]
+        friction_scale=float(rng.uniform(*FRICTION_RANGE)),
+        stiffness_scale=float(rng.uniform(*STIFFNESS_RANGE)),
+    )
+
+
+def accepted_options(backend: str) -> set[str]:
+    """Keyword options the constructors of a built-in backend's class chain take."""
+    import importlib
+
+    from backends import registry
+
+    target = getattr(registry, "_BUILTIN", {}).get(backend)
+    if target is None:
+        return set()
+    module, _, attr = target.partition(":")
+    cls = getattr(importlib.import_module(module), attr)
+    names: set[str] = set()
+    for klass in inspect.getmro(cls):
+        init = klass.__dict__.get("__init__")
+        if init is None:
+            continue
+        for name, prm in inspect.signature(init).parameters.items():
+            if name != "self" and prm.kind not in (prm.VAR_POSITIONAL, prm.VAR_KEYWORD):
+                names.add(name)
+    return names
+
+
+def backend_options(
+    perturbation: Perturbation, accepted: set[str]
+) -> tuple[dict[str, Any], tuple[str, ...], tuple[str, ...]]:
+    """The backend options carrying a perturbation.
+
+    Returns:
+        ``(options, applied, missing)``: the keyword options, and which perturbations
+        they carry and which the backend cannot take.
+    """
+    values: dict[str, Any] = {
+        "base_error": {r: list(v) for r, v in perturbation.base_error.items()},
+        "friction_scale": perturbation.friction_scale,
+        "stiffness_scale": perturbation.stiffness_scale,
+    }
+    options: dict[str, Any] = {}
+    applied: list[str] = []
+    missing: list[str] = []
+    for what, names in OPTION_NAMES.items():
+        name = next((n for n in names if n in accepted), None)
+        if name is None:
+            missing.append(what)
+        else:
+            options[name] = values[what]
+            applied.append(what)
+    return options, tuple(applied), tuple(missing)
+
+
+class Job(NamedTuple):
+    """One run (picklable)."""
+
+    algorithm: int
+    run: int
+    seed: int
+    perturbation: Perturbation
+    options: dict[str, Any]
+    backend: str
+    out_dir: str
+    max_time_s: float
+
+
+class Row(NamedTuple):
+    """One run's result (a row of ``results.csv``)."""
+
+    algorithm: int
+    run: int
+    seed: int
+    outcome: str
+    knot_type: str
+    success: bool
+    max_tension_N: float
+    sim_time_s: float
+    wall_time_s: float
+    friction_scale: float
+    stiffness_scale: float
+    base_error_mm: float
+    error: str
+
+
+def make_jobs(
+    algorithms: Sequence[int],
+    seeds: int,
+    *,
+    base_seed: int,
+    backend: str,
+    out: Path,
+    max_time_s: float,
+    perturb: bool,
+    accepted: set[str],
+) -> list[Job]:
+    """Every run's seed, perturbation and backend options (module doc)."""
+    jobs = []
+    for alg in algorithms:
+        for i in range(seeds):
+            ss = np.random.SeedSequence([base_seed, alg, i])
+            seed = int(ss.generate_state(1, dtype=np.uint32)[0] & 0x7FFFFFFF)
+            rng = np.random.default_rng(ss.spawn(1)[0])
+            pert = draw_perturbation(rng) if perturb else Perturbation()
+            opts = backend_options(pert, accepted)[0] if perturb else {}
+            out_dir = str(out / "runs" / f"alg{alg}-{i:03d}")
+            jobs.append(Job(alg, i, seed, pert, opts, backend, out_dir, max_time_s))
+    return jobs
+
+
+def knot_type(knot: Any) -> str:
+    """The ground-truth knot type of a summary's ``knot`` entry ('' when none).
+
+    A list (one entry per knot) counts only when every knot has the same type.
+    """
+    if isinstance(knot, Mapping):
+        return str(knot.get("type") or "")
+    if isinstance(knot, list) and knot:
+        types = {knot_type(k) for k in knot}
+        return types.pop() if len(types) == 1 else "mixed"
+    return ""
+
+
+def is_success(outcome: str, knot: str) -> bool:
+    """Success = outcome ``succeeded`` and the ground-truth knot ``square``."""
+    return outcome == "succeeded" and knot == "square"
+
+
+def run_one(job: Job) -> Row:
+    """Run one job in a worker; any exception becomes an ``error`` row (a failure)."""
+    from suture_engine.runtime.run import run_procedure
+
+    base_mm = max(
+        (float(np.linalg.norm(v)) * 1e3 for v in job.perturbation.base_error.values()),
+        default=0.0,
+    )
+    start = time.perf_counter()
+    common = (job.perturbation.friction_scale, job.perturbation.stiffness_scale, base_mm)
+    try:
+        with contextlib.redirect_stdout(io.StringIO()):
+            result = run_procedure(
+                str(PROCEDURE),
+                backend=job.backend,
+                seed=job.seed,
+                sets=[f"algorithm={job.algorithm}"],
+                out=job.out_dir,
+                max_time_s=job.max_time_s,
+                backend_options=job.options or None,
+            )
+    except Exception as exc:  # a physics blow-up counts as a failed run, with its reason
+        wall = time.perf_counter() - start
+        msg = f"{type(exc).__name__}: {exc}".replace("\n", " ")[:300]
+        return Row(job.algorithm, job.run, job.seed, "error", "", False, math.nan, 0.0, wall,
+                   *common, msg)  # fmt: skip
+    s = result.summary
+    kt = knot_type(s.knot)
+    return Row(
+        job.algorithm, job.run, job.seed, s.outcome, kt, is_success(s.outcome, kt),
+        float(s.max_tension_N), float(s.sim_time_s), time.perf_counter() - start, *common, "",
+    )  # fmt: skip
+
+
+class Tally(NamedTuple):
+    """Per-algorithm result."""
+
+    algorithm: int
+    runs: int
+    successes: int
+    rate: float
+    low: float
+    high: float
+    outcomes: dict[str, int]
+    knots: dict[str, int]
+
+
+def tally(rows: Sequence[Row]) -> list[Tally]:
+    """Success rate with its 95 % Wilson interval, per algorithm."""
+    from suture_engine.report.sweep import wilson_interval
+
+    out = []
+    for alg in sorted({r.algorithm for r in rows}):
+        mine = [r for r in rows if r.algorithm == alg]
+        k = sum(r.success for r in mine)
+        lo, hi = wilson_interval(k, len(mine))
+        out.append(
+            Tally(
+                alg, len(mine), k, k / len(mine), lo, hi,
+                dict(Counter(r.outcome for r in mine)),
+                dict(Counter(r.knot_type or "none" for r in mine)),
+            )
+        )  # fmt: skip
+    return out
+
+
+def write_csv(rows: Sequence[Row], path: Path) -> None:
+    """All rows, one per run."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with path.open("w", newline="", encoding="utf-8") as fh:
+        w = csv.writer(fh)
+        w.writerow(Row._fields)
+        for r in sorted(rows, key=lambda r: (r.algorithm, r.run)):
+            w.writerow(r)
+
+
+def main(argv: Sequence[str]) -> int:
+    """Run the benchmark and print the table; 0."""
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--seeds", type=int, default=20)
+    ap.add_argument("--algorithms", default="1,2,3")
+    ap.add_argument("--max-time", type=float, default=300.0, help="simulated s per run")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--out", type=Path, default=ROOT / "runs" / "knot-success")
+    ap.add_argument("--backend", default="pybullet-surgical")
+    ap.add_argument("--base-seed", type=int, default=0)
+    ap.add_argument("--no-perturb", action="store_true")
+    args = ap.parse_args(list(argv))
+    try:
+        algorithms = [int(a) for a in args.algorithms.split(",") if a.strip()]
+    except ValueError:
+        ap.error(f"--algorithms: comma-separated integers, got {args.algorithms!r}")
+    if not algorithms or any(a not in (1, 2, 3) for a in algorithms) or args.seeds < 1:
+        ap.error("--algorithms from 1,2,3 and --seeds >= 1")
+    accepted = accepted_options(args.backend)
+    _, applied, missing = backend_options(draw_perturbation(np.random.default_rng(0)), accepted)
+    perturb = not args.no_perturb
+    jobs = make_jobs(
+        algorithms, args.seeds, base_seed=args.base_seed, backend=args.backend, out=args.out,
+        max_time_s=args.max_time, perturb=perturb, accepted=accepted,
+    )  # fmt: skip
+    print(
+        f"square-knot.yaml on {args.backend}: {args.seeds} run(s) per algorithm "
+        f"{algorithms}, max {args.max_time:g} s simulated each, {args.workers} worker(s)"
+    )
+    if perturb:
+        print(f"perturbations applied: {', '.join(applied) or 'none'}")
+        if missing:
+            print(f"NOT applied (the backend takes no option for them): {', '.join(missing)}")
+    else:
+        print("perturbations: off (--no-perturb)")
+    t0 = time.perf_counter()
+    rows: list[Row] = []
+    ctx = get_context("spawn")
+    with ProcessPoolExecutor(args.workers, mp_context=ctx) as pool:
+        for row in pool.map(run_one, jobs):
+            rows.append(row)
+            note = f"  {row.error}" if row.error else ""
+            print(
+                f"  alg {row.algorithm} run {row.run:3d} seed {row.seed:10d}: {row.outcome:9s} "
+                f"knot {row.knot_type or '-':12s} {'OK ' if row.success else 'NO '}"
+                f"{row.sim_time_s:6.1f} s sim {row.wall_time_s:6.1f} s wall{note}",
+                flush=True,
+            )
+    write_csv(rows, args.out / "results.csv")
+    print(
+        f"\n{'algorithm':>9s} {'runs':>5s} {'success':>8s} {'rate':>6s} "
+        f"{'95% Wilson':>15s}  outcomes / knots"
+    )
+    for t in tally(rows):
+        print(
+            f"{t.algorithm:9d} {t.runs:5d} {t.successes:8d} {t.rate:6.0%} "
+            f"[{t.low:5.0%}, {t.high:5.0%}]  {t.outcomes} / {t.knots}"
+        )
+    print(f"[{time.perf_counter() - t0:.0f} s wall; rows in {args.out / 'results.csv'}]")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main(sys.argv[1:]))

@@ -1,0 +1,136 @@
+"""benchmarks/knot_success.py: perturbation draws, reproducible jobs, success rule, tally.
+
+Oracles: the sample statistics of many draws against the stated distributions, and
+scipy's own Wilson interval (``binomtest(...).proportion_ci(method="wilson")``).
+The physics runs themselves are the benchmark's business (too long for a test).
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _load() -> ModuleType:
+    spec = importlib.util.spec_from_file_location(
+        "knot_success_bench", ROOT / "benchmarks" / "knot_success.py"
+    )
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+ks = _load()
+
+
+def test_perturbation_draws_follow_the_stated_distributions() -> None:
+    rng = np.random.default_rng(123)
+    draws = [ks.draw_perturbation(rng) for _ in range(4000)]
+    base = np.array([d.base_error[r] for d in draws for r in ks.ROBOTS])  # (8000, 3)
+    assert base.shape == (8000, 3)
+    # sigma = 1 mm per component: the sample std within ~4 % (8000 samples), mean ~ 0
+    np.testing.assert_allclose(base.std(axis=0), 1e-3, rtol=0.04)
+    np.testing.assert_allclose(base.mean(axis=0), 0.0, atol=4 * 1e-3 / math.sqrt(8000))
+    fr = np.array([d.friction_scale for d in draws])
+    st = np.array([d.stiffness_scale for d in draws])
+    assert fr.min() >= 0.7 and fr.max() <= 1.3 and fr.max() - fr.min() > 0.58
+    assert st.min() >= 0.8 and st.max() <= 1.2 and st.max() - st.min() > 0.38
+    # uniform: variance (b - a)^2 / 12
+    assert fr.var() == pytest.approx(0.6**2 / 12, rel=0.08)
+    assert st.var() == pytest.approx(0.4**2 / 12, rel=0.08)
+
+
+def _jobs(algorithms: list[int], accepted: set[str], perturb: bool = True) -> list:  # type: ignore[type-arg]
+    return ks.make_jobs(
+        algorithms, 3, base_seed=7, backend="x", out=Path("/tmp/unused"), max_time_s=10.0,
+        perturb=perturb, accepted=accepted,
+    )  # fmt: skip
+
+
+def test_a_runs_inputs_do_not_depend_on_the_other_algorithms() -> None:
+    alone = _jobs([2], set())
+    together = [j for j in _jobs([1, 2, 3], set()) if j.algorithm == 2]
+    assert [(j.seed, j.perturbation) for j in alone] == [(j.seed, j.perturbation) for j in together]
+    seeds = [j.seed for j in _jobs([1, 2, 3], set())]
+    assert len(set(seeds)) == len(seeds)
+    assert len({j.out_dir for j in _jobs([1, 2, 3], set())}) == 9
+
+
+def test_perturbations_go_only_where_the_backend_takes_them() -> None:
+    pert = ks.draw_perturbation(np.random.default_rng(1))
+    opts, applied, missing = ks.backend_options(pert, {"friction_scale", "gui"})
+    assert opts == {"friction_scale": pert.friction_scale}
+    assert applied == ("friction_scale",) and set(missing) == {"base_error", "stiffness_scale"}
+    opts, applied, missing = ks.backend_options(
+        pert, {"base_error", "friction_scale", "suture_stiffness_scale"}
+    )
+    assert missing == () and len(applied) == 3
+    assert opts["suture_stiffness_scale"] == pert.stiffness_scale
+    assert opts["base_error"]["endobot_1"] == list(pert.base_error["endobot_1"])
+    # without perturbation no options at all, and the identity perturbation
+    plain = _jobs([1], {"friction_scale"}, perturb=False)
+    assert all(j.options == {} and j.perturbation == ks.Perturbation() for j in plain)
+
+
+def test_success_needs_the_outcome_and_the_ground_truth_square() -> None:
+    assert ks.is_success("succeeded", "square")
+    assert not ks.is_success("succeeded", "granny")
+    assert not ks.is_success("succeeded", "")
+    assert not ks.is_success("failed", "square")
+    assert ks.knot_type({"type": "square", "v3": 0}) == "square"
+    assert ks.knot_type(None) == ""
+    assert ks.knot_type([{"type": "square"}, {"type": "square"}]) == "square"
+    assert ks.knot_type([{"type": "square"}, {"type": "granny"}]) == "mixed"
+
+
+def _row(alg: int, ok: bool, outcome: str = "succeeded") -> object:
+    return ks.Row(alg, 0, 1, outcome, "square" if ok else "granny", ok, 1.0, 1.0, 1.0,
+                  1.0, 1.0, 0.5, "")  # fmt: skip
+
+
+@pytest.mark.parametrize(("k", "n"), [(0, 5), (3, 5), (16, 20), (20, 20)])
+def test_tally_rate_and_wilson_interval_match_scipy(k: int, n: int) -> None:
+    from scipy.stats import binomtest
+
+    rows = [_row(2, i < k) for i in range(n)] + [_row(3, True)]
+    t2, t3 = ks.tally(rows)
+    assert (t2.algorithm, t2.runs, t2.successes) == (2, n, k)
+    assert t2.rate == pytest.approx(k / n)
+    ci = binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
+    assert t2.low == pytest.approx(ci.low, abs=1e-9)
+    assert t2.high == pytest.approx(ci.high, abs=1e-9)
+    assert t2.knots == {k_: v for k_, v in {"square": k, "granny": n - k}.items() if v}
+    assert (t3.runs, t3.successes) == (1, 1)
+
+
+def test_a_run_that_raises_is_a_failed_error_row(tmp_path: Path) -> None:
+    job = ks.Job(2, 0, 5, ks.Perturbation(), {}, "no-such-backend", str(tmp_path / "r"), 1.0)
+    row = ks.run_one(job)
+    assert row.outcome == "error" and not row.success
+    assert "no-such-backend" in row.error
+
+
+def test_results_csv_has_one_row_per_run(tmp_path: Path) -> None:
+    rows = [_row(1, False, "failed"), _row(2, True)]
+    ks.write_csv(rows, tmp_path / "out" / "results.csv")
+    lines = (tmp_path / "out" / "results.csv").read_text().splitlines()
+    assert lines[0].split(",")[:4] == ["algorithm", "run", "seed", "outcome"]
+    assert len(lines) == 3
+
+
+def test_command_line_refuses_bad_algorithms() -> None:
+    with pytest.raises(SystemExit) as err:
+        ks.main(["--algorithms", "4", "--seeds", "1"])
+    assert err.value.code == 2
+    with pytest.raises(SystemExit):
+        ks.main(["--algorithms", "a,b"])
