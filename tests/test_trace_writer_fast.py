@@ -59,3 +59,68 @@ def test_other_chunking_uses_the_public_call(tmp_path: Path) -> None:
     with open(tmp_path / "x.mcap", "wb") as f:
         w = Writer(f, chunk_size=1024)
         assert writer_mod._message_adder(w).__name__ == "public"
+
+
+def _write_batches(path: Path, seed: int, batched: bool, **kwargs: Any) -> bytes:
+    """The same messages through write() one by one, or per time step through
+    write_encoded(); channels first appear in the middle of a batch."""
+    from suture_engine.trace import codec
+
+    rng = random.Random(seed)
+    meta = TraceMeta("batches", seed=seed, control_rate_hz=1000.0)
+    with TraceWriter(path, meta, flush_interval_ns=23_000_000, fsync=False, **kwargs) as w:
+        for k in range(300):
+            t = k * 1_000_000
+            step: list[tuple[str, dict[str, Any]]] = []
+            robots = ("left", "right") if k >= 5 else ("left",)
+            for robot in robots:
+                q = [rng.uniform(-1, 1) for _ in range(4)]
+                step.append((f"/joint_state/{robot}", {"position": q, "velocity": q[::-1]}))
+                if k % 3:
+                    step.append(
+                        (f"/command/{robot}", {"kind": "torque", "values": q, "mode": None})
+                    )
+            if k % 50 == 7:
+                step.insert(1, ("/events", {"name": f"e{k}", "kind": "planned", "state": "s"}))
+            if batched:
+                w.write_encoded(t, [(topic, codec.encode(msg)) for topic, msg in step])
+            else:
+                for topic, msg in step:
+                    w.write(topic, t, msg)
+    return path.read_bytes()
+
+
+@pytest.mark.parametrize("seed", [0, 3])
+def test_write_encoded_writes_the_same_bytes_as_write(tmp_path: Path, seed: int) -> None:
+    one = _write_batches(tmp_path / "one.mcap", seed, batched=False)
+    batch = _write_batches(tmp_path / "batch.mcap", seed, batched=True)
+    assert one == batch
+    assert len(list(TraceReader(tmp_path / "batch.mcap").messages())) > 900
+
+
+def test_write_encoded_through_mcaps_own_call(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    fast = _write_batches(tmp_path / "fast.mcap", 1, batched=True)
+    monkeypatch.setattr(writer_mod, "_message_adder", _public)
+    public = _write_batches(tmp_path / "public.mcap", 1, batched=True)
+    assert fast == public
+
+
+def test_write_encoded_checks_time_schema_and_state(tmp_path: Path) -> None:
+    from suture_engine.trace.errors import TraceMessageError, UnknownChannelError
+
+    meta = TraceMeta("checks", seed=0, control_rate_hz=1000.0)
+    w = TraceWriter(tmp_path / "c.mcap", meta, fsync=False, validate=True)
+    w.write_encoded(5, [("/tension/estimated", b'{"tension_N":1.0}')])
+    w.write_encoded(5, [])
+    with pytest.raises(TraceMessageError, match="before the previous"):
+        w.write_encoded(4, [("/tension/estimated", b'{"tension_N":1.0}')])
+    with pytest.raises(TraceMessageError, match="does not match"):
+        w.write_encoded(6, [("/tension/estimated", b'{"tension_N":"high"}')])
+    with pytest.raises(UnknownChannelError):
+        w.write_encoded(6, [("/nowhere", b"{}")])
+    w.close()
+    with pytest.raises(TraceMessageError, match="closed"):
+        w.write_encoded(7, [("/tension/estimated", b'{"tension_N":1.0}')])
+    assert [m.log_time_ns for m in TraceReader(tmp_path / "c.mcap").messages()] == [0, 5]

@@ -10,6 +10,7 @@ them, ``/ground_truth/tension`` (every tick) and ``/ground_truth/suture``
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -72,6 +73,15 @@ class Recorder:
 class TraceRecorder(Recorder):
     """Records into an MCAP trace through :class:`suture_engine.trace.writer.TraceWriter`.
 
+    The per-tick channels are encoded here, from templates, and handed to the writer as
+    one batch per tick (:meth:`~suture_engine.trace.writer.TraceWriter.write_encoded`):
+    the same bytes as the generic path (``fast=False``: a dict per message through
+    :func:`suture_engine.trace.codec.encode`), which takes over for any message the
+    templates do not cover (a non-finite value, an array that is not float64).
+    ``tests/test_trace_recorder.py`` compares both paths byte for byte. A ``/qp``
+    message waits for the tick's batch (or the next transition, event or operator
+    message), so messages keep the order of the calls.
+
     Args:
         path: the trace file.
         procedure: procedure name.
@@ -82,6 +92,8 @@ class TraceRecorder(Recorder):
         params: the procedure's parameters as run.
         extra: more metadata (the procedure file, the ``--set`` overrides).
         centerline_every: ticks between two ground-truth centerline messages.
+        fast: encode the per-tick channels from templates (False: one dict per message
+            through the generic encoder; same bytes, several times slower).
     """
 
     def __init__(
@@ -96,11 +108,13 @@ class TraceRecorder(Recorder):
         params: Mapping[str, Any],
         extra: Mapping[str, Any] | None = None,
         centerline_every: int = 100,
+        fast: bool = True,
     ) -> None:
-        from suture_engine.trace import channels
+        from suture_engine.trace import channels, codec
         from suture_engine.trace.writer import TraceMeta, TraceWriter
 
         self._ch = channels
+        self._encode = codec.encode
         meta = TraceMeta(
             procedure=procedure,
             seed=seed,
@@ -119,8 +133,39 @@ class TraceRecorder(Recorder):
             )
             for r in robots
         }
+        self._qp_topics: dict[str, str] = {}
         self._every = max(1, int(centerline_every))
         self._n = 0
+        self._fast = bool(fast)
+        self._json_str: dict[Any, str] = {}
+        self._json_bytes: dict[Any, bytes] = {}
+        self._encode_vectors = codec.encode_vectors
+        self._qp_prefix: dict[tuple[str, ...], str] = {}
+        self._queued: list[tuple[str, bytes]] = []
+        self._queued_ns = 0
+        self._wall_clock = self.writer.include_wall_clock
+
+    # -- the per-tick fast path -------------------------------------------------------------
+
+    def _str(self, value: Any) -> str:
+        """A string (or None) as JSON text, cached (robot names, modes, QP statuses)."""
+        text = self._json_str.get(value)
+        if text is None:
+            text = self._json_str[value] = json.dumps(value, ensure_ascii=False)
+        return text
+
+    def _bytes(self, value: Any) -> bytes:
+        """:meth:`_str` as UTF-8 bytes, cached."""
+        data = self._json_bytes.get(value)
+        if data is None:
+            data = self._json_bytes[value] = self._str(value).encode()
+        return data
+
+    def _drain(self) -> None:
+        """Write the queued ``/qp`` messages (before anything else of a later call)."""
+        if self._queued:
+            queued, self._queued = self._queued, []
+            self.writer.write_encoded(self._queued_ns, queued)
 
     def tick(
         self,
@@ -132,37 +177,111 @@ class TraceRecorder(Recorder):
         ground_truth: Mapping[str, Any],
     ) -> None:
         """Record one tick's measurements, commands and estimates."""
-        w = self.writer
-        for name, robot in obs.robots.items():
-            js, bw, cmd = self._topics[name]
-            w.write(js, time_ns, {"position": _floats(robot.q), "velocity": _floats(robot.qd)})
-            wr = robot.base_wrench
-            w.write(bw, time_ns, {"force": _floats(wr[:3]), "torque": _floats(wr[3:])})
-            tau = torques.get(name)
-            if tau is not None:
-                w.write(
-                    cmd,
-                    time_ns,
-                    {"kind": "torque", "values": _floats(tau), "mode": modes.get(name)},
-                )
-        if tension:
-            robot_name = max(tension, key=lambda k: tension[k])
-            w.write(
-                self._ch.TENSION_ESTIMATED,
-                time_ns,
-                {"tension_N": float(tension[robot_name]), "robot": robot_name},
-            )
+        if self._queued and self._queued_ns != time_ns:
+            self._drain()
+        batch = self._queued
+        self._queued = []
+        robot_name = max(tension, key=lambda k: tension[k]) if tension else None
         true_tension = ground_truth.get("tension_N")
-        if true_tension is not None:
-            w.write(self._ch.GROUND_TRUTH_TENSION, time_ns, {"tension_N": float(true_tension)})
+        fast = self._fast and self._tick_fast(
+            batch, obs, torques, modes, tension, robot_name, true_tension
+        )
+        if not fast:
+            self._tick_generic(batch, obs, torques, modes, tension, robot_name, true_tension)
+        self.writer.write_encoded(time_ns, batch)
         centerline = ground_truth.get("centerline")
         if centerline is not None and self._n % self._every == 0:
             pts = [_floats(p) for p in centerline]
-            w.write(self._ch.GROUND_TRUTH_SUTURE, time_ns, {"centerline": pts})
+            self.writer.write(self._ch.GROUND_TRUTH_SUTURE, time_ns, {"centerline": pts})
         self._n += 1
+
+    def _tick_fast(
+        self,
+        batch: list[tuple[str, bytes]],
+        obs: Observation,
+        torques: Mapping[str, Any],
+        modes: Mapping[str, str],
+        tension: Mapping[str, float],
+        robot_name: str | None,
+        true_tension: Any,
+    ) -> bool:
+        """The tick's messages from templates, every vector encoded in one call; False
+        (nothing appended) when a vector is not a float64 NumPy vector, or the base
+        wrench does not have six values."""
+        vectors: list[Any] = []
+        for name, robot in obs.robots.items():
+            wr = robot.base_wrench
+            if len(wr) != 6:
+                return False
+            vectors += (robot.q, robot.qd, wr)
+            tau = torques.get(name)
+            if tau is not None:
+                vectors.append(tau)
+        if robot_name is not None:
+            vectors.append([float(tension[robot_name])])
+        if true_tension is not None:
+            vectors.append([float(true_tension)])
+        texts = self._encode_vectors(vectors)
+        if texts is None:
+            return False
+        k = 0
+        for name in obs.robots:
+            js, bw, cmd = self._topics[name]
+            batch.append(
+                (js, b'{"position":[' + texts[k] + b'],"velocity":[' + texts[k + 1] + b"]}")
+            )
+            w = texts[k + 2].split(b",")
+            force, torque = b",".join(w[:3]), b",".join(w[3:])
+            batch.append((bw, b'{"force":[' + force + b'],"torque":[' + torque + b"]}"))
+            k += 3
+            if torques.get(name) is not None:
+                mode = self._bytes(modes.get(name))
+                batch.append(
+                    (cmd, b'{"kind":"torque","mode":' + mode + b',"values":[' + texts[k] + b"]}")
+                )
+                k += 1
+        if robot_name is not None:
+            text = b'{"robot":' + self._bytes(robot_name) + b',"tension_N":' + texts[k] + b"}"
+            batch.append((self._ch.TENSION_ESTIMATED, text))
+            k += 1
+        if true_tension is not None:
+            batch.append((self._ch.GROUND_TRUTH_TENSION, b'{"tension_N":' + texts[k] + b"}"))
+        return True
+
+    def _tick_generic(
+        self,
+        batch: list[tuple[str, bytes]],
+        obs: Observation,
+        torques: Mapping[str, Any],
+        modes: Mapping[str, str],
+        tension: Mapping[str, float],
+        robot_name: str | None,
+        true_tension: Any,
+    ) -> None:
+        """The tick's messages as dicts through the generic encoder."""
+        encode = self._encode
+        for name, robot in obs.robots.items():
+            js, bw, cmd = self._topics[name]
+            batch.append(
+                (js, encode({"position": _floats(robot.q), "velocity": _floats(robot.qd)}))
+            )
+            wr = robot.base_wrench
+            batch.append((bw, encode({"force": _floats(wr[:3]), "torque": _floats(wr[3:])})))
+            tau = torques.get(name)
+            if tau is not None:
+                msg = {"kind": "torque", "values": _floats(tau), "mode": modes.get(name)}
+                batch.append((cmd, encode(msg)))
+        if robot_name is not None:
+            msg2 = {"tension_N": float(tension[robot_name]), "robot": robot_name}
+            batch.append((self._ch.TENSION_ESTIMATED, encode(msg2)))
+        if true_tension is not None:
+            batch.append(
+                (self._ch.GROUND_TRUTH_TENSION, encode({"tension_N": float(true_tension)}))
+            )
 
     def transition(self, time_ns: int, record: TransitionRecord) -> None:
         """Record one transition on ``/transitions`` and its event on ``/events``."""
+        self._drain()
         self.writer.write(
             self._ch.TRANSITIONS,
             time_ns,
@@ -181,6 +300,7 @@ class TraceRecorder(Recorder):
 
     def operator(self, time_ns: int, event: OperatorEvent, accepted: bool, detail: str) -> None:
         """Record one operator event on ``/operator``."""
+        self._drain()
         msg: dict[str, Any] = {
             "action": event.action,
             "robot": event.robot,
@@ -198,6 +318,7 @@ class TraceRecorder(Recorder):
 
     def event(self, time_ns: int, name: str, kind: str, state: str, detail: str) -> None:
         """Record an event on ``/events``."""
+        self._drain()
         self.writer.write(
             self._ch.EVENTS,
             time_ns,
@@ -205,18 +326,43 @@ class TraceRecorder(Recorder):
         )
 
     def qp(self, time_ns: int, robot: str, result: Any) -> None:
-        """Record one QP solve on ``/qp/<robot>`` (the wall-clock solve time is dropped)."""
-        self.writer.write(
-            self._ch.qp_topic(robot),
-            time_ns,
-            {
-                "status": str(result.status),
-                "iterations": int(result.iterations),
-                "active_constraints": list(result.active),
-                "solve_time_us": float(result.solve_time_s) * 1e6,
-            },
-        )
+        """Record one QP solve on ``/qp/<robot>`` (the wall-clock solve time is dropped).
+
+        The message is queued and written with the tick's batch (or before the next
+        message of another kind): the file is the same as with an immediate write.
+        """
+        if self._queued and self._queued_ns != time_ns:
+            self._drain()
+        topic = self._qp_topics.get(robot)
+        if topic is None:
+            topic = self._qp_topics[robot] = self._ch.qp_topic(robot)
+        status = str(result.status)
+        active = tuple(result.active)
+        iterations = int(result.iterations)
+        prefix = self._qp_prefix.get(active) if self._fast else None
+        if prefix is None and self._fast and all(type(a) is str for a in active):
+            prefix = '{"active_constraints":' + json.dumps(
+                list(active), ensure_ascii=False, separators=(",", ":")
+            )
+            self._qp_prefix[active] = prefix
+        if prefix is not None and not self._wall_clock:
+            text = prefix + ',"iterations":' + str(iterations) + ',"status":' + self._str(status)
+            data = (text + "}").encode()
+        else:
+            msg: dict[str, Any] = {
+                "status": status,
+                "iterations": iterations,
+                "active_constraints": list(active),
+            }
+            if self._wall_clock:
+                msg["solve_time_us"] = float(result.solve_time_s) * 1e6
+            data = self._encode(msg)
+        self._queued_ns = time_ns
+        self._queued.append((topic, data))
 
     def close(self) -> None:
-        """Write the footer and close the file."""
-        self.writer.close()
+        """Write the queued messages, the footer, and close the file."""
+        try:
+            self._drain()
+        finally:
+            self.writer.close()

@@ -1,0 +1,164 @@
+"""The trace recorder's per-tick fast path writes the same file as the generic path.
+
+The generic path builds one dict per message and encodes it with the standard
+library's JSON encoder (``codec.encode``); the fast path encodes every vector of a
+tick in one orjson call, lays the numbers out as ``repr`` does, and fills message
+templates. Both are run on the same calls and the files compared byte for byte.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from suture_engine.control.constrained_qp import QPResult
+from suture_engine.runtime import recorder as recorder_mod
+from suture_engine.runtime.automaton import TransitionRecord
+from suture_engine.runtime.observation import (
+    Observation,
+    RobotObservation,
+    SceneGeometry,
+    ToolState,
+)
+from suture_engine.runtime.operator import OperatorEvent
+from suture_engine.runtime.recorder import TraceRecorder
+from suture_engine.runtime.run import run_procedure
+from suture_engine.trace.reader import TraceReader
+
+PROCS = Path(__file__).parent / "procedures"
+ROBOTS = ("endobot_1", "endobot_2")
+
+
+def _observation(k: int, rng: np.random.Generator) -> Observation:
+    """Values across the decades where repr and orjson lay numbers out differently."""
+    scale = 10.0 ** rng.integers(-12, 3, size=6)
+    robots = {
+        r: RobotObservation(
+            rng.normal(size=4) * scale[:4],
+            rng.normal(size=4) * scale[2:6],
+            rng.normal(size=6) * scale,
+            ToolState(),
+        )
+        for r in ROBOTS
+    }
+    return Observation(k, k * 1e-3, robots, SceneGeometry())
+
+
+def _record(path: Path, fast: bool, wall_clock: bool = False) -> bytes:
+    """One call sequence, with the odd cases the fast path must hand over or keep in order."""
+    rng = np.random.default_rng(7)
+    rec = TraceRecorder(
+        path,
+        procedure="p",
+        seed=0,
+        control_rate_hz=1000.0,
+        robots=ROBOTS,
+        backend="test",
+        params={},
+        centerline_every=4,
+        fast=fast,
+    )
+    if wall_clock:
+        rec.writer._include_wall_clock = True
+        rec._wall_clock = True
+    for k in range(60):
+        t = k * 1_000_000
+        obs = _observation(k, rng)
+        torques: dict[str, Any] = {r: rng.normal(size=4) for r in ROBOTS}
+        truth: dict[str, Any] = {"tension_N": float(rng.uniform(0, 3))}
+        if k % 5 == 1:
+            torques["endobot_2"] = np.array([1, 2, 3, 4])  # ints: written as floats
+        if k % 7 == 2:
+            torques["endobot_1"] = np.array([0.5, np.nan, np.inf, -1e-5])  # null
+        if k % 9 == 3:
+            torques["endobot_1"] = np.arange(8.0)[::2]  # not contiguous
+        if k % 11 == 4:
+            del torques["endobot_2"]  # no command this tick
+        if k % 4 == 0:
+            truth["centerline"] = rng.normal(size=(5, 3))
+        if k % 13 == 5:
+            truth["tension_N"] = float("nan")
+        if k % 3 == 0:
+            active = ("line[0]", "line[1]") if k % 2 else ("joint_bound[3]",)
+            res = QPResult(np.zeros(4), "solved", True, k, 1e-5, active, 0.0)
+            rec.qp(t, "endobot_1", res)
+        if k % 10 == 6:  # a transition between the QP message and the tick's messages
+            rec.transition(t, TransitionRecord("a", "b", "advance", "planned", "done"))
+        if k == 20:
+            rec.operator(t, OperatorEvent(action="lock", source="test"), True, "")
+            rec.event(t, "note", "info", "a", "detail")
+        tension = {"endobot_1": float(rng.uniform(0, 1)), "endobot_2": 1e-7 * k}
+        modes = {"endobot_1": "autonomous", "endobot_2": None if k % 6 == 0 else "lock"}
+        rec.tick(t, obs, torques, modes, tension, truth)  # type: ignore[arg-type]
+    rec.qp(60_000_000, "endobot_2", QPResult(np.zeros(4), "max iter", False, 9, 1.0, (), 0.0))
+    rec.close()  # writes the queued QP message
+    return path.read_bytes()
+
+
+def test_fast_path_writes_the_generic_paths_bytes(tmp_path: Path) -> None:
+    fast = _record(tmp_path / "fast.mcap", fast=True)
+    generic = _record(tmp_path / "generic.mcap", fast=False)
+    assert fast == generic
+    messages = list(TraceReader(tmp_path / "fast.mcap").messages())
+    topics = {m.topic for m in messages}
+    assert {"/qp/endobot_2", "/operator", "/ground_truth/suture", "/transitions"} <= topics
+    assert messages[-1].topic == "/qp/endobot_2"
+
+
+def test_fast_path_keeps_wall_clock_fields_when_asked(tmp_path: Path) -> None:
+    fast = _record(tmp_path / "fast.mcap", fast=True, wall_clock=True)
+    generic = _record(tmp_path / "generic.mcap", fast=False, wall_clock=True)
+    assert fast == generic
+    qp = next(m for m in TraceReader(tmp_path / "fast.mcap").messages() if m.topic[:3] == "/qp")
+    assert qp.data["solve_time_us"] == pytest.approx(10.0)
+
+
+def test_fast_path_is_taken_and_matches_json_on_a_tick(tmp_path: Path) -> None:
+    rec = TraceRecorder(
+        tmp_path / "t.mcap",
+        procedure="p",
+        seed=0,
+        control_rate_hz=1000.0,
+        robots=ROBOTS,
+        backend="test",
+        params={},
+    )
+    obs = _observation(0, np.random.default_rng(3))
+    torques = {r: np.array([0.25, -1e-9, 3e16, 5e-5]) for r in ROBOTS}
+    batch: list[tuple[str, bytes]] = []
+    assert rec._tick_fast(batch, obs, torques, {r: "lock" for r in ROBOTS}, {"a": 1.0}, "a", 2.0)
+    rec.close()
+    by_topic = dict(batch)
+    cmd = json.loads(by_topic["/command/endobot_1"])
+    assert cmd == {"kind": "torque", "mode": "lock", "values": [0.25, -1e-9, 3e16, 5e-5]}
+    assert by_topic["/command/endobot_1"].endswith(b'"values":[0.25,-1e-09,3e+16,5e-05]}')
+    wrench = json.loads(by_topic["/base_wrench/endobot_2"])
+    assert wrench["force"] + wrench["torque"] == obs.robots["endobot_2"].base_wrench.tolist()
+    assert json.loads(by_topic["/ground_truth/tension"]) == {"tension_N": 2.0}
+
+
+def test_a_run_records_the_same_trace_on_both_paths(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    taken: list[bool] = []
+    original = recorder_mod.TraceRecorder._tick_fast
+
+    def spy(self: TraceRecorder, *args: Any) -> bool:
+        taken.append(original(self, *args))
+        return taken[-1]
+
+    monkeypatch.setattr(recorder_mod.TraceRecorder, "_tick_fast", spy)
+    fast = run_procedure(PROCS / "steps.yaml", backend="ideal", out=tmp_path / "fast")
+    assert len(taken) > 100 and all(taken)
+    taken.clear()
+    defaults = dict(recorder_mod.TraceRecorder.__init__.__kwdefaults__ or {})
+    monkeypatch.setattr(
+        recorder_mod.TraceRecorder.__init__, "__kwdefaults__", {**defaults, "fast": False}
+    )
+    generic = run_procedure(PROCS / "steps.yaml", backend="ideal", out=tmp_path / "generic")
+    assert taken == []
+    assert fast.trace.read_bytes() == generic.trace.read_bytes()
