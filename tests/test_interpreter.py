@@ -98,7 +98,9 @@ def test_scenario_injected_violation_notbe_retry_success(tmp_path: Path) -> None
     events = _messages(result.trace, "/events")
     unpredictable = [e.data for e in events if e.data["kind"] == "unpredictable"]
     assert len(unpredictable) == 1 and "invariant:tension" in unpredictable[0]["detail"]
-    assert s.max_tension_N == pytest.approx(3.0, abs=1e-9)
+    # the 30 ms push of 3 N through the estimate's 30 Hz low-pass (tau 5.3 ms):
+    # 3 N (1 - e^(-30/5.3)) = 2.99 N, a little less for the discrete filter
+    assert 0.98 * 3.0 < s.max_tension_N < 3.0
 
 
 def test_scenario_unrecoverable_violation_lock_then_operator_abort(tmp_path: Path) -> None:
@@ -187,18 +189,19 @@ def test_workspace_and_singularity_invariants() -> None:
     )
     m = Monitor()
     inv = Invariant(singularity_margin_rad=0.05)
-    v = m.check(inv, obs, "s", {"r": 0.0}, {}, {})
+    v = m.check(inv, obs, "s", {"r": 0.0}, {})
     assert v is not None and v.invariant == "singularity"
     assert v.value == pytest.approx(np.pi / 2 - 1.55)
     inv = Invariant(q_max=(1.0, 1.0, 1.0, 1.0))
-    v = m.check(inv, obs, "s", {"r": 0.0}, {}, {})
+    v = m.check(inv, obs, "s", {"r": 0.0}, {})
     assert v is not None and (v.invariant, v.bound) == ("workspace", 1.0)
     inv = Invariant(workspace_min=(-1.0, -1.0, -1.0), workspace_max=(1.0, 1.0, 0.0))
-    v = m.check(inv, obs, "s", {"r": 0.0}, {}, {})
+    v = m.check(inv, obs, "s", {"r": 0.0}, {})
     # tip z = q4 cos(q1) cos(q2) > 0 in the base frame (identity base): outside the box
     assert v is not None and v.invariant == "workspace"
-    assert m.check(Invariant(max_tension_N=5.0), obs, "s", {"r": 4.9}, {}, {}) is None
-    assert m.check(None, obs, "s", {"r": 9.0}, {}, {"r": True}) is not None  # sensor fault
+    assert m.check(Invariant(max_tension_N=5.0), obs, "s", {"r": 4.9}, {}) is None
+    assert m.check(Invariant(max_tension_N=5.0), obs, "s", {"r": 5.1}, {}) is not None
+    assert m.check(None, obs, "s", {"r": 9.0}, {}) is None  # no invariant, nothing to check
 
 
 def test_skills_observe_estimated_velocity_and_no_ground_truth() -> None:
@@ -338,43 +341,6 @@ def test_on_pybullet_lock_holds_the_pose_and_manual_gives_way(
     }
     drift = max(float(np.abs(q[k] - q[50]).max()) for k in range(100, 600))
     assert low < drift < high
-
-
-def test_sensor_dropout_is_an_unpredictable_event() -> None:
-    from suture_engine.runtime.observation import Measurement, RobotMeasurement
-
-    class Dropout(IdealBackend):
-        def observe(self) -> Measurement:
-            m = super().observe()
-            if self.tick != 30:
-                return m
-            robots = {
-                n: RobotMeasurement(r.q, r.base_wrench, r.tool, fault=(n == "endobot_1"))
-                for n, r in m.robots.items()
-            }
-            return Measurement(m.tick, m.t, robots)
-
-    plan = Plan(
-        "p",
-        "a",
-        {
-            "a": StepSpec(
-                "a",
-                lambda: ScriptedSkill("a", "success", after_s=0.1),
-                "end",
-                FailurePolicy(0, Then.ABORT),
-                robots=("endobot_1",),
-            )
-        },
-        {"end": Outcome.SUCCEEDED},
-    )
-    be = Dropout()
-    it = Interpreter(plan, be, be.reset())
-    s = it.run("p", "ideal")
-    assert s.outcome == "aborted"
-    assert [(v["invariant"], v["tick"], v["robot"]) for v in s.violations] == [
-        ("sensor", 30, "endobot_1")
-    ]
 
 
 def test_operator_takes_one_robot_while_the_other_works(tmp_path: Path) -> None:

@@ -497,6 +497,26 @@ class Automaton:
             return out
         return out + self._apply_policy(reason)
 
+    def emergency_lock(self, reason: str) -> list[TransitionRecord]:
+        """The monitor's emergency (tension near its limit, a non-finite measurement, a
+        stale sensor): lock every robot and wait for the operator, whatever the step's
+        policy. A running step goes through its NOT-BE state first (Fig. 4.25).
+
+        Returns:
+            The transitions (none when the robots already hold their pose or the run
+            is over).
+        """
+        if self.mode in (Mode.IDLE, Mode.LOCK, Mode.TERMINAL):
+            return []
+        out: list[TransitionRecord] = []
+        if self.mode is Mode.AUTONOMOUS:
+            self.interrupted_step = self.step_name
+            self.interrupted_skill = self.active_skill
+            out.append(self._fire("fault", "unpredictable", reason))
+        out.append(self._fire("lock", "unpredictable", reason))
+        self.waiting_for_operator = True
+        return out
+
     def _apply_policy(self, reason: str) -> list[TransitionRecord]:
         step = self.step_name
         assert step is not None

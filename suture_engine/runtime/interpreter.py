@@ -10,8 +10,12 @@ on a backend at the control rate (default 1 kHz). Each tick:
 3. **skill**: in Autonomous mode the active step's skill computes a command;
    a skill exception or ``FAILURE`` is an unpredictable event, ``SUCCESS`` the
    planned event;
-4. **monitor**: the step's invariant (4.43), the step's timeout and sensor
-   faults; a violation is an unpredictable event (to the step's NOT-BE state);
+4. **monitor**: the step's invariant (4.43) and timeout; a violation is an
+   unpredictable event (to the step's NOT-BE state). Before the operator and
+   the skill, in every mode, the monitor's emergency check locks every robot
+   when the base-sensor tension estimate (7.6-7.9) reaches a margin below the
+   scene's limit, on a non-finite measurement (held at its last finite value)
+   or on a sensor stale longer than a bound;
 5. **controller**: per robot, the law of its mode (Lock 4.44, Manual 5.1,
    Autonomous 5.10) gives joint torques;
 6. **apply, step** the backend; **trace** the tick.
@@ -21,6 +25,8 @@ Ground truth from the backend goes to the trace only.
 
 from __future__ import annotations
 
+import dataclasses
+import math
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import asdict
@@ -32,12 +38,13 @@ from suture_engine.errors import SutureError
 from suture_engine.runtime.automaton import Automaton, Mode, Plan, StepSpec
 from suture_engine.runtime.context import SkillContext
 from suture_engine.runtime.controller import ModeController
-from suture_engine.runtime.monitor import Invariant, Monitor, TensionEstimator
+from suture_engine.runtime.monitor import BaseSensorTension, Invariant, Monitor, SafetyLimits
 from suture_engine.runtime.observation import (
     Command,
     Measurement,
     Observation,
     RobotCommand,
+    RobotMeasurement,
     RobotObservation,
     SceneGeometry,
     SkillStatus,
@@ -92,6 +99,11 @@ class Interpreter:
         washout_pole: pole of the washout velocity filter [rad/s] (5.50).
         manual_invariant: the Manual mode invariant (4.45), e.g. the joint limits.
         on_tick: called after every recorded tick with the interpreter (live panel, video).
+        emergency_margin: the monitor locks every robot when the estimated tension
+            reaches ``(1 - emergency_margin) * tension_limit_N`` [-].
+        max_stale_s: the monitor locks every robot when a sensor stays stale (dropped
+            readings) longer than this [s]; shorter dropouts are absorbed.
+        tension_cutoff_hz: low-pass cut-off of the base-sensor tension estimate [Hz].
     """
 
     def __init__(
@@ -113,6 +125,9 @@ class Interpreter:
         washout_pole: float = 150.0,
         manual_invariant: Invariant | None = None,
         on_tick: Callable[[Interpreter], None] | None = None,
+        emergency_margin: float = 0.1,
+        max_stale_s: float = 0.01,
+        tension_cutoff_hz: float = 30.0,
     ) -> None:
         from suture_engine.control.filters import WashoutFilter
 
@@ -141,7 +156,15 @@ class Interpreter:
             gravity[name] = (float(g[0]), float(g[1]), float(g[2]))
         self.controller = ModeController(self.robots, self.dt, gravity_base=gravity)
         self.monitor = Monitor()
-        self.tension = TensionEstimator()
+        self.safety = SafetyLimits(tension_limit_N, emergency_margin, max_stale_s)
+        from suture_engine.robot.params import E1
+
+        models = {r: dataclasses.replace(E1, gravity=g) for r, g in gravity.items()}
+        self.tension = BaseSensorTension(models, self.dt, tension_cutoff_hz)
+        self._last_good: dict[str, RobotMeasurement] = {}
+        self._non_finite: dict[str, str] = {}
+        self._stale: dict[str, bool] = {}
+        first = self._sanitise(first)
         self.tension.tare(first)
         self.automaton = Automaton(plan, self._start_skill)
         self.ctx: SkillContext | None = None
@@ -187,9 +210,34 @@ class Interpreter:
         self.ctx = ctx
 
     # ----------------------------------------------------------------- one tick
+    def _sanitise(self, meas: Measurement) -> Measurement:
+        """Hold each robot's last finite reading in place of a non-finite one (NaN or inf:
+        a physics blow-up or a sensor fault) and note it, with the sensors' dropouts,
+        for the monitor's emergency check."""
+        self._non_finite = bad = {}
+        self._stale = {n: True for n, m in meas.robots.items() if m.fault}
+        replaced: dict[str, RobotMeasurement] | None = None
+        for name, m in meas.robots.items():
+            q = m.q.tolist()
+            w = m.base_wrench.tolist()
+            if math.isfinite(sum(q) + sum(w)):
+                self._last_good[name] = m
+                continue
+            bad[name] = "q" if not all(math.isfinite(v) for v in q) else "base_wrench"
+            good = self._last_good.get(name)
+            if good is None:
+                good = RobotMeasurement(np.zeros(len(q)), np.zeros(6), m.tool, m.fault)
+            if replaced is None:
+                replaced = dict(meas.robots)
+            replaced[name] = RobotMeasurement(good.q, good.base_wrench, m.tool, m.fault)
+        if replaced is None:
+            return meas
+        return Measurement(meas.tick, meas.t, replaced)
+
     def _observe(self) -> tuple[Measurement, Observation]:
         meas = self._pending_meas if self._pending_meas is not None else self.backend.observe()
         self._pending_meas = None
+        meas = self._sanitise(meas)
         robots = {}
         for name, m in meas.robots.items():
             qd = np.array(self._washout[name].update(m.q))
@@ -265,6 +313,53 @@ class Interpreter:
         self.robot_modes[robot] = mode
         self.recorder.operator(time_ns, ev, True, "")
 
+    def _emergency_check(self, time_ns: int, obs: Observation) -> None:
+        """The monitor's emergency lock, in every mode, whatever the step's invariant:
+        tension a margin below the scene's limit, a non-finite measurement, a sensor
+        stale too long (an unpredictable event; every robot locks and the operator is
+        waited for). Recorded on /events as ``emergency`` with its reason."""
+        a = self.automaton
+        manual_held = any(m is Mode.MANUAL for m in self.robot_modes.values())
+        locked = a.mode in (Mode.LOCK, Mode.TERMINAL, Mode.IDLE) and not manual_held
+        before = len(self.monitor.violations)
+        tension = self._tension
+        guided = self._operator_guided()
+        if guided:
+            tension = {r: v for r, v in tension.items() if r not in guided}
+        v = self.monitor.emergency(
+            self.safety,
+            obs,
+            a.state,
+            tension,
+            self._stale,
+            self._non_finite,
+            self.dt,
+            locked,
+        )
+        for rec in self.monitor.violations[before:]:
+            self.recorder.event(time_ns, "emergency", "unpredictable", a.state, rec.reason)
+        if v is None:
+            return
+        self.robot_modes.clear()  # every robot follows the automaton's Lock
+        self._record_transitions(time_ns, a.emergency_lock(v.reason))
+
+    def _operator_guided(self) -> set[str]:
+        """Robots the operator's hand moves now: Manual (the whole automaton or one robot),
+        or a shared-control step (a skill with ``mode: shared``, 6.24, 6.33-6.37).
+
+        The base sensor cannot tell the surgeon's hand from the thread, so the
+        emergency tension lock leaves these robots to the surgeon (Manual's invariant
+        is the workspace, 4.45); the non-finite and stale-sensor locks still act."""
+        a = self.automaton
+        out = {r for r, m in self.robot_modes.items() if m is Mode.MANUAL}
+        if a.mode is Mode.MANUAL:
+            out.update(self.robots)
+        elif a.mode is Mode.AUTONOMOUS and a.active_step is not None:
+            params = getattr(a.active_skill, "params", None)
+            if getattr(params, "mode", None) == "shared":
+                out.update(a.active_step.robots or self.robots)
+        return out
+
     def _held_robot_blocks(self, time_ns: int) -> None:
         """A step that needs a robot the operator holds cannot run: interrupt it."""
         a = self.automaton
@@ -289,15 +384,12 @@ class Interpreter:
             self._record_transitions(time_ns, records)
             return None
         self._qp_tick(time_ns, a.active_skill, spec)
-        tension = self._tension
-        faults = {n: r.fault for n, r in meas.robots.items()}
         violation = self.monitor.check(
             spec.invariant,
             obs,
             a.state,
-            tension,
+            self._tension,
             self._qp_failures,
-            faults,
             spec.robots,
             self.ctx.base_poses,
         )
@@ -356,8 +448,7 @@ class Interpreter:
         a = self.automaton
         if a.mode is not Mode.MANUAL or self.manual_invariant is None:
             return
-        tension = self.tension.estimate(obs)
-        v = self.monitor.check(self.manual_invariant, obs, a.state, tension, {}, {})
+        v = self.monitor.check(self.manual_invariant, obs, a.state, self._tension, {})
         if v is not None:
             self._record_transitions(time_ns, a.operator("lock"))
             self.recorder.event(time_ns, "manual-workspace", "unpredictable", a.state, v.reason)
@@ -374,6 +465,7 @@ class Interpreter:
         a = self.automaton
         if self.tick_index == 0:
             self._record_transitions(time_ns, a.start())
+        self._emergency_check(time_ns, obs)
         self._handle_operator(time_ns, obs)
         self._held_robot_blocks(time_ns)
         command = self._skill_tick(time_ns, obs, meas)

@@ -12,22 +12,38 @@ invariants checked here are the ones a procedure declares:
   ``[workspace_min, workspace_max]`` [m];
 - a singularity margin (3.22-3.23): |q2| stays ``margin`` [rad] away from
   90 deg and the insertion q4 stays above ``insertion_margin_m`` [m];
-- QP failures: at most ``max_qp_failures`` consecutive failed solves;
-- sensor faults: a dropout flagged by the backend.
+- QP failures: at most ``max_qp_failures`` consecutive failed solves.
+
+Independently of the steps' invariants, in every mode, :meth:`Monitor.emergency`
+locks the robots (an unpredictable event, issue #8's third tension layer) when
+the estimated tension reaches a margin below the scene's derived limit, when a
+measurement is not finite, and when a sensor stays stale longer than a bound
+(:class:`SafetyLimits`). The tension is the thesis' base-sensor estimate
+(7.6)-(7.9), :class:`BaseSensorTension`.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from suture_engine.runtime.observation import Measurement, Observation
 
-__all__ = ["Invariant", "Monitor", "TensionEstimator", "Violation"]
+if TYPE_CHECKING:
+    from suture_engine.robot.params import EndoBotParams
+
+__all__ = [
+    "EMERGENCIES",
+    "BaseSensorTension",
+    "Invariant",
+    "Monitor",
+    "SafetyLimits",
+    "Violation",
+]
 
 
 @dataclass(frozen=True)
@@ -66,7 +82,8 @@ class Violation:
         tick: tick index.
         state: the automaton state.
         robot: the robot concerned ("" when none).
-        invariant: which check ("tension", "workspace", "singularity", "qp", "sensor").
+        invariant: which check ("tension", "force", "workspace", "singularity", "qp"; the
+            emergencies "tension-limit", "non-finite", "sensor-stale").
         value: the offending value (tension [N], joint value, count).
         bound: the bound it crossed.
     """
@@ -83,35 +100,179 @@ class Violation:
     def reason(self) -> str:
         """Short text for the automaton's event reason."""
         who = f"{self.robot}:" if self.robot else ""
+        if self.invariant in EMERGENCIES:
+            return f"emergency:{self.invariant}:{who}{self.value:.6g}>={self.bound:.6g}"
         return f"invariant:{self.invariant}:{who}{self.value:.6g}>{self.bound:.6g}"
 
 
-class TensionEstimator:
-    """Suture tension from the base force/torque sensor, as the magnitude of the
-    force change since a tare taken when the robot was at rest (a monitor-grade
-    estimate of (7.6-7.10): it also sees inertial forces of fast motions).
+EMERGENCIES = ("tension-limit", "non-finite", "sensor-stale")
+"""The monitor's own checks, independent of the steps' invariants: each locks the robots."""
+
+
+@dataclass(frozen=True)
+class SafetyLimits:
+    """Bounds of the monitor's emergency lock (issue #8, the third tension layer).
+
+    Independently of the running step's invariant, the monitor locks every robot
+    when the estimated tension reaches ``(1 - margin) * tension_limit_N``, when a
+    measurement is not finite (NaN or inf in the encoders or the base wrench: a
+    physics blow-up or a sensor fault) and when a sensor reports dropped (stale)
+    readings for longer than ``max_stale_s``. Shorter dropouts are absorbed (the
+    backend holds the last reading). The tension lock leaves robots the operator's
+    hand moves (Manual, shared control) to the surgeon: the base sensor cannot tell
+    the hand's force from the thread's.
+
+    Attributes:
+        tension_limit_N: the scene's derived tension limit [N] (Tables 7.1-7.2 times
+            the safety factor); None: no tension lock.
+        margin: fraction of the limit kept in reserve [-] (0.1: lock at 90 %).
+        max_stale_s: longest tolerated run of stale sensor readings [s].
     """
 
-    def __init__(self) -> None:
-        self._tare: dict[str, np.ndarray] = {}
+    tension_limit_N: float | None = None
+    margin: float = 0.1
+    max_stale_s: float = 0.01
+
+    def __post_init__(self) -> None:
+        if not 0.0 <= self.margin < 1.0:
+            raise ValueError(f"margin must be in [0, 1), not {self.margin!r}")
+        if not self.max_stale_s >= 0.0:
+            raise ValueError(f"max_stale_s must be >= 0, not {self.max_stale_s!r}")
+
+    @property
+    def lock_tension_N(self) -> float | None:
+        """The tension at which the monitor locks [N] (None: no tension lock)."""
+        if self.tension_limit_N is None:
+            return None
+        return (1.0 - self.margin) * self.tension_limit_N
+
+
+class BaseSensorTension:
+    """Tension at each robot's tool tip from its base force/torque sensor (7.6)-(7.9).
+
+    Per robot and tick, as :mod:`suture_engine.suture.tension` derives it: the
+    gravity wrench ``F_g(q)`` of the robot's model (link masses and centres of
+    mass, gravity in the robot's base frame) is compensated (7.7), the motion
+    wrench ``F_m`` is neglected (low speed, 7.2.2), and the environment's load
+    ``-F_b = F_g + o - F_s`` is moved from the remote centre of motion O to the tool
+    tip ``p(q)`` (3.12) by the adjoint transform (7.8)-(7.9): force ``f`` and
+    moment ``m_tip = m_O - p x f``. A first-order low-pass (``cutoff_hz``) filters
+    both. The monitor knows no pulling direction, so its tension is ``|f|`` [N]
+    (the thread's tension when the thread is the only load at the tip); the
+    moment about the tip (about 0 for a pure tip force) is kept in
+    :attr:`tip_moment`.
+
+    The tare ``o = F_s - F_g(q)``, taken at rest with the thread slack, absorbs
+    the static frame above the sensor, unmodelled mounted tools' weight and the
+    sensor's bias. Note that the force part of ``F_g`` is ``-sum_i m_i g`` at every
+    pose: a robot's pose changes the gravity *moment* at the sensor, never its
+    force, so ``|f|`` is free of the robot's pose-dependent load once tared;
+    what the estimate still sees of the robot itself is its motion wrench.
+
+    The arithmetic is on plain floats (a few microseconds per robot and tick); it
+    equals :func:`suture_engine.suture.tension.tip_wrench` (tested).
+
+    Args:
+        params: per robot, the robot's model with gravity in its base frame;
+            robots missing here use E1 (base z axis pointing down).
+        dt: control period [s].
+        cutoff_hz: low-pass cut-off [Hz]; ``math.inf`` disables filtering.
+    """
+
+    def __init__(
+        self,
+        params: Mapping[str, EndoBotParams] | None = None,
+        dt: float = 1e-3,
+        cutoff_hz: float = 30.0,
+    ) -> None:
+        if not (dt > 0.0 and math.isfinite(dt)):
+            raise ValueError(f"dt must be finite and > 0, not {dt!r}")
+        if not cutoff_hz > 0.0:
+            raise ValueError(f"cutoff_hz must be > 0, not {cutoff_hz!r}")
+        self.params = dict(params or {})
+        self.dt = dt
+        self.cutoff_hz = cutoff_hz
+        tau = 0.0 if math.isinf(cutoff_hz) else 1.0 / (2.0 * math.pi * cutoff_hz)
+        self._alpha = dt / (tau + dt)
+        self._model: dict[str, tuple[float, ...]] = {}
+        self._offset: dict[str, tuple[float, ...]] = {}
+        self._state: dict[str, list[float]] = {}
+        self.tip_moment: dict[str, tuple[float, float, float]] = {}
+        """Filtered moment about each tool tip, base frame [N*m] (~0 for a thread)."""
+
+    def _coefficients(self, name: str) -> tuple[float, ...]:
+        """(g, M g, m1 c1, m2 c2 + m3 c3 + m4 c4, m4) of the robot's model (7.6)."""
+        model = self._model.get(name)
+        if model is None:
+            from suture_engine.robot.params import E1
+
+            prm = self.params.get(name, E1)
+            b1, b2, b3, b4 = prm.bodies
+            gx, gy, gz = (float(v) for v in prm.gravity)
+            mass = b1.mass + b2.mass + b3.mass + b4.mass
+            a1 = b1.mass * b1.com_z
+            a2 = b2.mass * b2.com_z + b3.mass * b3.com_z + b4.mass * b4.com_z
+            model = (gx, gy, gz, mass * gx, mass * gy, mass * gz, a1, a2, b4.mass)
+            self._model[name] = model
+        return model
+
+    def _load(self, name: str, q: Sequence[float], w: Sequence[float]) -> list[float]:
+        """``F_g(q) - F_s`` about O (force [N], moment [N*m]), without the tare."""
+        gx, gy, gz, mgx, mgy, mgz, a1, a2, m4 = self._coefficients(name)
+        q1, q2, q4 = q[0], q[1], q[3]
+        c1, s1 = math.cos(q1), math.sin(q1)
+        c2, s2 = math.cos(q2), math.sin(q2)
+        k = a2 + m4 * q4
+        # first mass moment h = sum_i m_i c_i(q) (z1 = Rx(q1) e_z, z2 = Rx(q1) Ry(q2) e_z)
+        hx, hy, hz = k * s2, -(a1 + k * c2) * s1, (a1 + k * c2) * c1
+        # F_g = -(M g, h x g)
+        return [
+            -mgx - w[0],
+            -mgy - w[1],
+            -mgz - w[2],
+            -(hy * gz - hz * gy) - w[3],
+            -(hz * gx - hx * gz) - w[4],
+            -(hx * gy - hy * gx) - w[5],
+        ]
 
     def tare(self, measurement: Measurement) -> None:
-        """Zero the estimate on the current base force of every robot."""
+        """Zero every robot's estimate on this measurement (at rest, thread slack)."""
         for name, robot in measurement.robots.items():
-            self._tare[name] = np.array(robot.base_wrench[:3])
+            load = self._load(name, robot.q.tolist(), robot.base_wrench.tolist())
+            self._offset[name] = tuple(-v for v in load)
+            self._state.pop(name, None)
 
     def estimate(self, obs: Observation) -> dict[str, float]:
-        """Estimated tension [N] per robot."""
+        """Estimated tension ``|f|`` [N] per robot (filtered); updates :attr:`tip_moment`."""
         out: dict[str, float] = {}
+        alpha = self._alpha
         for name, robot in obs.robots.items():
-            # Plain floats (the same IEEE operations as on numpy scalars, a fraction of
-            # the per-call cost).
-            fx, fy, fz = robot.base_wrench[:3].tolist()
-            tare = self._tare.get(name)
-            if tare is not None:
-                tx, ty, tz = tare.tolist()
-                fx, fy, fz = fx - tx, fy - ty, fz - tz
-            out[name] = math.sqrt(fx * fx + fy * fy + fz * fz)
+            q = robot.q.tolist()
+            load = self._load(name, q, robot.base_wrench.tolist())
+            o = self._offset.get(name)
+            if o is not None:
+                load = [load[i] + o[i] for i in range(6)]
+            fx, fy, fz, mx, my, mz = load
+            q1, q2, q4 = q[0], q[1], q[3]
+            c2q4 = math.cos(q2) * q4
+            px, py, pz = math.sin(q2) * q4, -math.sin(q1) * c2q4, math.cos(q1) * c2q4
+            # adjoint transform to the tip (7.9): m_tip = m_O - p x f
+            x = [
+                fx,
+                fy,
+                fz,
+                mx - (py * fz - pz * fy),
+                my - (pz * fx - px * fz),
+                mz - (px * fy - py * fx),
+            ]
+            st = self._state.get(name)
+            if st is None:
+                st = self._state[name] = x
+            else:
+                for i in range(6):
+                    st[i] += alpha * (x[i] - st[i])
+            self.tip_moment[name] = (st[3], st[4], st[5])
+            out[name] = math.sqrt(st[0] * st[0] + st[1] * st[1] + st[2] * st[2])
         return out
 
 
@@ -121,6 +282,64 @@ class Monitor:
     def __init__(self) -> None:
         self.violations: list[Violation] = []
         self.max_tension_N = 0.0
+        self._stale: dict[str, int] = {}
+        self._active: set[tuple[str, str]] = set()
+
+    def emergency(
+        self,
+        limits: SafetyLimits,
+        obs: Observation,
+        state: str,
+        tension: Mapping[str, float],
+        stale: Mapping[str, bool],
+        non_finite: Mapping[str, str],
+        dt: float,
+        locked: bool,
+    ) -> Violation | None:
+        """The monitor's emergency check for this tick (see :class:`SafetyLimits`).
+
+        Args:
+            limits: the emergency bounds.
+            obs: this tick's observation (state, time).
+            state: the automaton state (for the record).
+            tension: estimated tension per robot [N].
+            stale: per robot, whether a sensor reported a dropped (held) reading.
+            non_finite: per robot, the signal that was not finite ("q", "base_wrench").
+            dt: control period [s].
+            locked: whether every robot already holds its pose (Lock law): a
+                condition that lasts is then recorded once, when it arises.
+
+        Returns:
+            The first emergency that must lock the robots now (also recorded), or
+            None. A condition arising while ``locked`` is recorded, not returned.
+        """
+        found: list[Violation] = []
+        for name in obs.robots:
+            signal = non_finite.get(name)
+            if signal:
+                found.append(Violation(obs.t, obs.tick, state, name, "non-finite", 1.0, 0.0))
+            run = self._stale.get(name, 0) + 1 if stale.get(name, False) else 0
+            self._stale[name] = run
+            if run and run * dt > limits.max_stale_s + 0.5 * dt:
+                found.append(
+                    Violation(
+                        obs.t, obs.tick, state, name, "sensor-stale", run * dt, limits.max_stale_s
+                    )
+                )
+            bound = limits.lock_tension_N
+            value = tension.get(name, 0.0)
+            if bound is not None and value >= bound:
+                found.append(Violation(obs.t, obs.tick, state, name, "tension-limit", value, bound))
+        keys = {(v.invariant, v.robot) for v in found}
+        arising = [v for v in found if (v.invariant, v.robot) not in self._active]
+        self._active = keys
+        if not found:
+            return None
+        if locked:
+            self.violations.extend(arising)
+            return None
+        self.violations.append(found[0])
+        return found[0]
 
     def check(
         self,
@@ -129,33 +348,31 @@ class Monitor:
         state: str,
         tension: Mapping[str, float],
         qp_failures: Mapping[str, int],
-        sensor_faults: Mapping[str, bool],
         robots: tuple[str, ...] = (),
         base_poses: Mapping[str, Any] | None = None,
     ) -> Violation | None:
         """Return the first violation of ``invariant`` this tick (also recorded), or None.
 
+        Sensor dropouts, non-finite measurements and the tension limit are not a
+        step's invariant: :meth:`emergency` checks them in every mode.
+
         Args:
-            invariant: the active step's invariant (None: only sensor faults count).
+            invariant: the active step's invariant (None: nothing to check).
             obs: this tick's observation.
             state: the automaton state (for the record).
             tension: estimated tension per robot [N].
             qp_failures: consecutive QP failures per robot.
-            sensor_faults: per robot, whether a sensor dropped out this tick.
             robots: the robots the step drives (empty: all).
             base_poses: robot -> (base position [m], row-major 3x3 rotation) for the
                 tool-tip workspace box.
         """
         if tension:
             self.max_tension_N = max(self.max_tension_N, max(tension.values()))
+        if invariant is None:
+            return None
         names = robots or tuple(obs.robots)
         found: Violation | None = None
         for name in names:
-            if sensor_faults.get(name, False):
-                found = Violation(obs.t, obs.tick, state, name, "sensor", 1.0, 0.0)
-                break
-            if invariant is None:
-                continue
             found = self._check_robot(invariant, obs, state, name, tension, qp_failures)
             if found is None and invariant.workspace_min is not None:
                 found = self._check_tip(invariant, obs, state, name, (base_poses or {}).get(name))
