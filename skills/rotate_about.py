@@ -328,6 +328,8 @@ class RotateAbout(Skill):
         self._rolls: Any = [0.0]
         self.clearance: SweepClearance | None = None
         """The needle's clearance from the ``clear_of`` stem, planned at start."""
+        self.limit_violation = ""
+        """The planned path's first joint-limit violation (empty when none)."""
 
     def _point_world(self, ctx: Any) -> Any:
         import numpy as np
@@ -420,8 +422,8 @@ class RotateAbout(Skill):
         self._roll_table(p.angle, q0)
         duration = max(1.875 * abs(p.angle) / p.speed, 0.1)
         self._path = ToolPath(lambda s: self.joints_at(s * p.angle, q0), duration)
-        if not self._failure:
-            self._failure = self._path.first_violation(joint_box(ctx, self._robot))
+        self.limit_violation = self._path.first_violation(joint_box(ctx, self._robot))
+        self._failure = self._failure or self.limit_violation
         if p.clear_of is not None:
             self._check_clearance(ctx, q0, ctx.robot(p.clear_of))
         self._goal = tip_world(self._path.joints_at(1.0), self._base)
