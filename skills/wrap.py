@@ -22,13 +22,14 @@ the tools' shafts cross.
 
 from __future__ import annotations
 
+import math
 from typing import Any, ClassVar, Literal
 
 from pydantic import Field
 
 from skills.base import Skill, SkillParams
 from suture_engine.language.refs import RoleRef
-from suture_engine.language.units import Length, Speed
+from suture_engine.language.units import Angle, Length, Speed
 
 __all__ = ["Wrap", "WrapParams"]
 
@@ -46,6 +47,10 @@ class WrapParams(SkillParams):
     """Number of loops (2 for the first throw of a surgeon's knot)."""
     radius: Length = Field(default=8e-3, gt=0.0, le=0.05)
     """Radius of the loop around the other tool [m]."""
+    sweep: Angle | None = Field(default=None, gt=0.0, le=6.0 * math.pi)
+    """Angle swept about the other shaft [rad]; ``None``: pi (2 turns - 1), the half
+    turn over the hook that the needle pass completes (algorithm 2). A full turn
+    (360 deg) loops the suture around the shaft by the tool's motion alone."""
     speed: Speed = Field(default=0.01, gt=0.0, le=0.2)
     """Tool-tip speed [m/s]."""
     tolerance: Length | None = Field(default=None, gt=0.0, le=5e-3)
@@ -115,6 +120,8 @@ class Wrap(Skill):
 
         p = self.params
         assert isinstance(p, WrapParams)
+        if p.sweep is not None:
+            return float(p.sweep)
         return math.pi * (2 * p.turns - 1)
 
     def _segment(self, a: Any, b: Any, roll: float) -> Any:

@@ -675,3 +675,25 @@ def test_pass_needle_check_flags_tension_bounds(scene: Any) -> None:
     assert codes(3.0) == []
     assert codes(0.1) == ["tension-bound-too-low"]
     assert codes(scene.tension_limit + 0.5) == ["tension-above-limit"]
+
+
+def test_wrap_sweep_sets_the_angle_about_the_other_shaft(scene: Any) -> None:
+    """``sweep`` overrides the half turn: a full turn ends where the arc began."""
+    qs, tools = start_pose(scene)
+    q_other = np.array(qs["endobot_2"])
+    params = {"robot": "stitcher", "around": "grasper", "sweep": 2 * math.pi, "speed": 0.04}
+    run = Run(Wrap(params), scene, qs, tools, max_t=60.0)
+    assert run.status is SkillStatus.SUCCESS, run.message
+    o2 = np.array(scene.robots["endobot_2"].base.position)
+    t2 = tip(scene, "endobot_2", q_other)
+    axis = (o2 - t2) / np.linalg.norm(o2 - t2)
+    tips = np.array([tip(scene, "endobot_1", q) for q in run.q("endobot_1")])
+    rel = tips - t2
+    radial = rel - np.outer(rel @ axis, axis)
+    on_loop = np.abs(np.linalg.norm(radial, axis=1) - 0.008) < 1e-6
+    assert on_loop.sum() > 50
+    e1 = radial[on_loop][0] / np.linalg.norm(radial[on_loop][0])
+    e2 = np.cross(axis, e1)
+    ang = np.unwrap(np.arctan2(radial[on_loop] @ e2, radial[on_loop] @ e1))
+    assert ang[-1] - ang[0] == pytest.approx(-2 * math.pi, abs=0.02)
+    assert np.allclose(radial[on_loop][0], radial[on_loop][-1], atol=1e-5)
