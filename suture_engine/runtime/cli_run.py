@@ -45,6 +45,9 @@ def _print_summary(summary: object, out_dir: Path | None) -> None:
     knot = getattr(s, "knot", None)
     if knot is not None and hasattr(knot, "get") and knot.get("type"):
         rows.append(("knot (ground truth)", str(knot["type"])))
+    elif isinstance(knot, list) and knot:  # one entry per stitch
+        types = ", ".join(str(k.get("type")) for k in knot)
+        rows.append(("knots (ground truth)", types))
     else:
         rows.append(("knot", "not checked: this backend simulates no thread"))
     stopped = getattr(s, "metrics", {}).get("stopped")
