@@ -90,10 +90,12 @@ def _write_batches(path: Path, seed: int, batched: bool, **kwargs: Any) -> bytes
     return path.read_bytes()
 
 
-@pytest.mark.parametrize("seed", [0, 3])
-def test_write_encoded_writes_the_same_bytes_as_write(tmp_path: Path, seed: int) -> None:
-    one = _write_batches(tmp_path / "one.mcap", seed, batched=False)
-    batch = _write_batches(tmp_path / "batch.mcap", seed, batched=True)
+@pytest.mark.parametrize(("seed", "message_index"), [(0, False), (3, False), (4, True)])
+def test_write_encoded_writes_the_same_bytes_as_write(
+    tmp_path: Path, seed: int, message_index: bool
+) -> None:
+    one = _write_batches(tmp_path / "one.mcap", seed, batched=False, message_index=message_index)
+    batch = _write_batches(tmp_path / "batch.mcap", seed, batched=True, message_index=message_index)
     assert one == batch
     assert len(list(TraceReader(tmp_path / "batch.mcap").messages())) > 900
 
@@ -101,10 +103,14 @@ def test_write_encoded_writes_the_same_bytes_as_write(tmp_path: Path, seed: int)
 def test_write_encoded_through_mcaps_own_call(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    fast = _write_batches(tmp_path / "fast.mcap", 1, batched=True)
-    monkeypatch.setattr(writer_mod, "_message_adder", _public)
-    public = _write_batches(tmp_path / "public.mcap", 1, batched=True)
-    assert fast == public
+    for message_index in (False, True):
+        fast = _write_batches(tmp_path / "f.mcap", 1, batched=True, message_index=message_index)
+        with monkeypatch.context() as m:
+            m.setattr(writer_mod, "_message_adder", _public)
+            public = _write_batches(
+                tmp_path / "p.mcap", 1, batched=True, message_index=message_index
+            )
+        assert fast == public
 
 
 def test_write_encoded_checks_time_schema_and_state(tmp_path: Path) -> None:

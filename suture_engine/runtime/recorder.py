@@ -227,25 +227,21 @@ class TraceRecorder(Recorder):
         k = 0
         for name in obs.robots:
             js, bw, cmd = self._topics[name]
-            batch.append(
-                (js, b'{"position":[' + texts[k] + b'],"velocity":[' + texts[k + 1] + b"]}")
-            )
-            w = texts[k + 2].split(b",")
-            force, torque = b",".join(w[:3]), b",".join(w[3:])
-            batch.append((bw, b'{"force":[' + force + b'],"torque":[' + torque + b"]}"))
+            batch.append((js, b'{"position":[%b],"velocity":[%b]}' % (texts[k], texts[k + 1])))
+            w = texts[k + 2]  # six numbers: the third comma splits force from torque
+            i = w.index(b",", w.index(b",", w.index(b",") + 1) + 1)
+            batch.append((bw, b'{"force":[%b],"torque":[%b]}' % (w[:i], w[i + 1 :])))
             k += 3
             if torques.get(name) is not None:
                 mode = self._bytes(modes.get(name))
-                batch.append(
-                    (cmd, b'{"kind":"torque","mode":' + mode + b',"values":[' + texts[k] + b"]}")
-                )
+                batch.append((cmd, b'{"kind":"torque","mode":%b,"values":[%b]}' % (mode, texts[k])))
                 k += 1
         if robot_name is not None:
-            text = b'{"robot":' + self._bytes(robot_name) + b',"tension_N":' + texts[k] + b"}"
+            text = b'{"robot":%b,"tension_N":%b}' % (self._bytes(robot_name), texts[k])
             batch.append((self._ch.TENSION_ESTIMATED, text))
             k += 1
         if true_tension is not None:
-            batch.append((self._ch.GROUND_TRUTH_TENSION, b'{"tension_N":' + texts[k] + b"}"))
+            batch.append((self._ch.GROUND_TRUTH_TENSION, b'{"tension_N":%b}' % texts[k]))
         return True
 
     def _tick_generic(

@@ -173,6 +173,7 @@ class TraceWriter:
         self._add_batch = _batch_adder(self._mcap, self._add)
         self._schema_ids: dict[str, int] = {}
         self._channel_ids: dict[str, tuple[int, channels.ChannelSpec]] = {}
+        self._fast_ids: dict[str, int] = {}
         self._validators: dict[str, Any] = {}
         self._closed = False
         self._last_time_ns = 0
@@ -288,7 +289,20 @@ class TraceWriter:
                 messages[0][0],
                 f"time {time_ns} ns is before the previous message's {self._last_time_ns} ns",
             )
-        records: list[tuple[int, bytes]] = []
+        if not self._validate:
+            ids = self._fast_ids
+            try:  # the common case: every channel known, nothing to validate
+                records = [(ids[topic], data) for topic, data in messages]
+            except KeyError:
+                pass
+            else:
+                try:
+                    self._new_step(time_ns)
+                    self._add_records(time_ns, records)
+                except OSError as exc:
+                    raise TraceIOError(str(self.path), f"write failed: {exc.strerror}") from exc
+                return
+        records = []
         channel_ids = self._channel_ids
         first = True
         try:
@@ -303,25 +317,29 @@ class TraceWriter:
                     self._check_schema(topic, entry[1], data)
                 if first:
                     first = False
-                    if self._pending and time_ns > self._last_time_ns:  # a new time step
-                        if self._chunk_bytes >= self._chunk_size or (
-                            self._flush_interval_ns > 0
-                            and time_ns - self._last_flush_ns >= self._flush_interval_ns
-                        ):
-                            self.flush()
-                            self._last_flush_ns = time_ns
-                    self._last_time_ns = time_ns
+                    self._new_step(time_ns)
                 records.append((entry[0], data))
             self._add_records(time_ns, records)
         except OSError as exc:
             raise TraceIOError(str(self.path), f"write failed: {exc.strerror}") from exc
 
+    def _new_step(self, time_ns: int) -> None:
+        """Before the first message at ``time_ns``: close the chunk when it is full or
+        the flush interval has passed, and only at a new time step (as ``write`` does)."""
+        if self._pending and time_ns > self._last_time_ns:  # a new time step begins
+            if self._chunk_bytes >= self._chunk_size or (
+                self._flush_interval_ns > 0
+                and time_ns - self._last_flush_ns >= self._flush_interval_ns
+            ):
+                self.flush()
+                self._last_flush_ns = time_ns
+        self._last_time_ns = time_ns
+
     def _add_records(self, time_ns: int, records: list[tuple[int, bytes]]) -> None:
-        self._add_batch(time_ns, records)
         n = len(records)
+        self._chunk_bytes += self._add_batch(time_ns, records) + n * _MESSAGE_OVERHEAD
         self.message_count += n
         self._pending += n
-        self._chunk_bytes += sum(len(data) for _, data in records) + n * _MESSAGE_OVERHEAD
 
     def flush(self) -> None:
         """Closes the chunk in progress and makes everything written so far durable.
@@ -379,6 +397,7 @@ class TraceWriter:
             topic=topic, message_encoding="json", schema_id=schema_id
         )
         self._channel_ids[topic] = (channel_id, spec)
+        self._fast_ids[topic] = channel_id
         return channel_id, spec
 
     def _sync(self) -> None:
@@ -470,32 +489,40 @@ def _message_adder(writer: Any) -> Callable[[int, int, bytes], None]:
 
 def _batch_adder(
     writer: Any, single: Callable[[int, int, bytes], None]
-) -> Callable[[int, Sequence[tuple[int, bytes]]], None]:
+) -> Callable[[int, Sequence[tuple[int, bytes]]], int]:
     """Adds several (channel id, data) messages logged and published at one time: the
-    same bytes and bookkeeping as ``single`` called for each, in one pass.
+    same bytes and bookkeeping as ``single`` called for each, in one pass. Returns the
+    number of data bytes added.
 
     Like :func:`_message_adder`'s fast path it relies on mcap 1.6's writer internals and
     is used only when ``single`` is that fast path; otherwise it calls ``single`` per
-    message. ``tests/test_trace_writer_fast.py`` checks the bytes against mcap's own call.
+    message. The chunk's message indexes are kept only when the writer writes them
+    (``IndexType.MESSAGE``). ``tests/test_trace_writer_fast.py`` checks the bytes
+    against mcap's own call.
     """
 
-    def loop(time_ns: int, records: Sequence[tuple[int, bytes]]) -> None:
+    def loop(time_ns: int, records: Sequence[tuple[int, bytes]]) -> int:
+        size = 0
         for channel_id, data in records:
             single(channel_id, time_ns, data)
+            size += len(data)
+        return size
 
     if getattr(single, "__name__", "") != "fast":
         return loop
     from mcap.records import MessageIndex
+    from mcap.writer import IndexType
 
     builder = writer._Writer__chunk_builder
     stats = writer._Writer__statistics
+    indexed = bool(writer._Writer__index_types & IndexType.MESSAGE)
     counts = stats.channel_message_counts
     indices = builder.message_indices
     pack = _MESSAGE_HEADER.pack
 
-    def batch(time_ns: int, records: Sequence[tuple[int, bytes]]) -> None:
+    def batch(time_ns: int, records: Sequence[tuple[int, bytes]]) -> int:
         if not records:
-            return
+            return 0
         if stats.message_count == 0 or time_ns < stats.message_start_time:
             stats.message_start_time = time_ns
         if time_ns > stats.message_end_time:
@@ -505,22 +532,27 @@ def _batch_adder(
         if time_ns > builder.message_end_time:
             builder.message_end_time = time_ns
         buf = builder.record_writer._buffer
-        offset = buf.tell()
         parts = []
+        size = 0
+        if indexed:
+            offset = buf.tell()
+            for channel_id, data in records:
+                index = indices.get(channel_id)
+                if not index:
+                    index = indices[channel_id] = MessageIndex(channel_id=channel_id, records=[])
+                index.records.append((time_ns, offset))
+                offset += 31 + len(data)
         for channel_id, data in records:
             counts[channel_id] += 1
-            index = indices.get(channel_id)
-            if not index:
-                index = indices[channel_id] = MessageIndex(channel_id=channel_id, records=[])
-            index.records.append((time_ns, offset))
             n = len(data)
+            size += n
             parts.append(pack(0x05, 22 + n, channel_id, 0, time_ns, time_ns))
             parts.append(data)
-            offset += 31 + n
         n_records = len(records)
         stats.message_count += n_records
         builder.num_messages += n_records
         buf.write(b"".join(parts))
+        return size
 
     return batch
 
