@@ -179,6 +179,8 @@ class Interpreter:
         self._waiting_ticks = 0
         self._last_skill: Any = None
         self._tension: dict[str, float] = {}
+        self._true_tension = [-math.inf, math.nan]
+        """Peak and last true thread tension of the ground truth [N] (evaluation only)."""
         self.interrupted = False
         self.robot_modes: dict[str, Mode] = {}
         """Robots the operator holds alone (lock or manual) while the procedure goes on."""
@@ -487,6 +489,11 @@ class Interpreter:
             modes[name] = mode.value
         self.monitor.max_tension_N = max(self.monitor.max_tension_N, *tension.values())
         truth = self.backend.ground_truth()
+        true_tension = truth.get("tension_N")
+        if true_tension is not None:
+            self._true_tension[1] = true_tension
+            if not true_tension <= self._true_tension[0]:
+                self._true_tension[0] = true_tension
         self.recorder.tick(time_ns, obs, torques, modes, tension, truth)
         if self.on_tick is not None:
             self.on_tick(self)
@@ -510,24 +517,37 @@ class Interpreter:
             self.progress(obs.t, self.max_time_s)
         return True
 
-    def _knot(self) -> dict[str, Any] | None:
-        """The knot on the final ground-truth centerline (``knot_summary``: the
-        classifier's topology and the knot's geometry against the tissue plane), or
-        None when the backend simulates no thread. Evaluation only: skills never see it."""
+    def _evaluate(self) -> Any:
+        """Knots and stitch metrics from the final ground truth and the tension figures
+        (:mod:`suture_engine.runtime.evaluation`). Evaluation only: skills never see it."""
+        from suture_engine.runtime.evaluation import evaluate
+
         truth = self.backend.ground_truth()
         centerline = truth.get("centerline")
-        if centerline is None:
-            return None
-        from suture_engine.suture.geometry import knot_summary
-
         geometry = getattr(self.backend, "geometry", None)
         scene = geometry() if geometry is not None else None
         point = scene.entry_point if scene is not None else (0.0, 0.0, 0.0)
         normal = scene.tissue_normal if scene is not None else (0.0, 0.0, 1.0)
+        tissue = getattr(self.scene, "tissue", None)
+        declared = dict(getattr(tissue, "points", None) or {})
+        diameter = truth.get("contact_diameter")
+        if diameter is None:  # the PyBullet thread's capsule contact radius
+            params = getattr(
+                getattr(getattr(self.backend, "scene", None), "suture", None), "params", None
+            )
+            radius = getattr(params, "collision_radius", None)
+            diameter = 2.0 * float(radius) if radius is not None else None
+        peak, last = self._true_tension
+        true = (peak, last) if math.isfinite(last) else None
+        final = max(self._tension.values()) if self._tension else None
+        estimated = [self.monitor.max_tension_N] + ([final] if final is not None else [])
         try:
-            return dict(knot_summary(centerline, tissue_point=point, tissue_normal=normal))
-        except SutureError as exc:  # e.g. a degenerate centerline
-            return {"type": None, "error": str(exc)}
+            return evaluate(centerline, estimated, true, point, normal, declared, diameter)
+        except (SutureError, ValueError) as exc:  # e.g. a degenerate centerline
+            from suture_engine.runtime.evaluation import TraceEvaluation, tension_metrics
+
+            knot = {"type": None, "error": str(exc)} if centerline is not None else None
+            return TraceEvaluation(knot, dict(tension_metrics(estimated, true)))
 
     def _stuck(self) -> bool:
         """Locked and waiting, for 10 ticks, with no timed operator event left."""
@@ -572,6 +592,9 @@ class Interpreter:
         metrics = dict(self.metrics)
         if self.stop_reason and not a.finished:
             metrics["stopped"] = self.stop_reason
+        evaluation = self._evaluate()
+        for key, value in evaluation.metrics.items():
+            metrics.setdefault(key, value)
         return RunSummary(
             procedure=procedure,
             outcome=outcome,
@@ -586,7 +609,7 @@ class Interpreter:
             retries=a.retries_total,
             operator_events=self.operator_events,
             metrics=metrics,
-            knot=self._knot(),
+            knot=evaluation.knot,
             seed=self.seed,
             backend=backend_name,
             ticks=self.tick_index + 1,

@@ -31,8 +31,15 @@ class RunSummary:
         violations: invariant violations (dicts: t, tick, state, robot, invariant, value, bound).
         retries: retries the failure policies made.
         operator_events: operator events received.
-        metrics: procedure metrics.
-        knot: knot evaluation (None until the suturing work fills it).
+        metrics: procedure metrics (the skills'), plus the run's evaluation
+            (:mod:`suture_engine.runtime.evaluation`): ``peak_tension_N``,
+            ``final_tension_N`` (estimate), ``peak_true_tension_N``,
+            ``final_true_tension_N`` (simulated thread) and ``stitches`` (entry/exit
+            position error, bite depth, spacing mean and SD; None without a thread).
+        knot: the ground-truth knot evaluation: one entry (a dict with ``type``,
+            ``determinant``, ``v2``, ``v3``, ``seated``, ``post_straight``, ``lay``, ...),
+            a list of them when the thread has several stitches (one per stitch), or
+            None when the backend simulates no thread.
         seed: the random seed.
         backend: the backend's name.
         ticks: ticks run.
@@ -51,7 +58,7 @@ class RunSummary:
     retries: int
     operator_events: int
     metrics: Mapping[str, Any] = field(default_factory=dict)
-    knot: Mapping[str, Any] | None = None
+    knot: Mapping[str, Any] | list[Mapping[str, Any]] | None = None
     seed: int = 0
     backend: str = ""
     ticks: int = 0

@@ -1,0 +1,399 @@
+"""A run's evaluation for ``summary.json``: knots and STAR-style stitch metrics.
+
+Everything here is computed from what a run records for evaluation (the
+backend's ground truth: the suture's centerline and true tension; the
+estimated tension), never from the procedure's own belief, and never shown
+to skills.
+
+- **Bites.** The centerline dips under the tissue surface where a stitch
+  passes through it. A bite is a maximal run of centerline points more than
+  ``min_depth`` under the tissue plane (through ``tissue_point``, normal
+  ``tissue_normal``); its pierce points are where the centerline crosses the
+  plane just before and after the run (linear interpolation), and its depth
+  is the run's largest distance under the plane. Along the centerline (tail
+  first) the first pierce point is the entry, the second the exit; when the
+  declared points say the other way round fits better, they are swapped.
+  These are the thread's pierce points: the needle drew the thread through
+  them, the simulator records no needle-tip path.
+- **Stitch metrics** (as in STAR's suture evaluation): per bite the distance
+  of the entry and exit pierce points from the scene's declared entry/exit
+  points (the nearest declared pair, ``entry_k``/``exit_k``), the bite depth,
+  and the spacing between consecutive bites' centres, mean +- SD.
+- **Knots.** One entry per stitch when there are several bites: the
+  centerline is cut at the arc-length midpoints between consecutive bites
+  and each piece is classified on its own (the knot tying stitch k binds the
+  strands on either side of bite k); otherwise one entry for the whole
+  centerline. Each entry: the classifier's topology (``type``,
+  ``determinant``, ``v2``, ``v3``, ...), ``seated`` (knot centre on the
+  tissue plane, :func:`suture_engine.suture.geometry.knot_summary`) and
+  ``post_straight`` with its ``lay`` from
+  :func:`suture_engine.suture.knot.knot_lay` (True: square lay; False: two
+  half hitches, thesis Fig. 7.4).
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Iterable, Mapping, Sequence
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    "Bite",
+    "TraceEvaluation",
+    "evaluate",
+    "evaluate_trace",
+    "find_bites",
+    "knot_entries",
+    "stitch_metrics",
+    "tension_metrics",
+]
+
+FloatArray = NDArray[np.float64]
+
+MIN_DEPTH = 2e-4
+"""Depth under the tissue plane [m] below which centerline points count as inside."""
+
+
+class Bite(NamedTuple):
+    """One passage of the thread through the tissue.
+
+    Attributes:
+        entry: pierce point where the thread goes in, world frame [m].
+        exit: pierce point where it comes out, world frame [m].
+        depth: largest distance of the thread under the tissue plane [m].
+        first: index of the first centerline point under the plane.
+        last: index of the last centerline point under the plane.
+    """
+
+    entry: tuple[float, float, float]
+    exit: tuple[float, float, float]
+    depth: float
+    first: int
+    last: int
+
+
+def _points(centerline: ArrayLike) -> FloatArray:
+    pts = np.asarray(centerline, dtype=float)
+    if pts.ndim != 2 or pts.shape[1] != 3 or not np.all(np.isfinite(pts)):
+        raise ValueError(f"a centerline is a finite N x 3 array, got shape {pts.shape}")
+    return pts
+
+
+def _crossing(a: FloatArray, b: FloatArray, ha: float, hb: float) -> tuple[float, float, float]:
+    s = ha / (ha - hb) if ha != hb else 0.5
+    p = a + s * (b - a)
+    return (float(p[0]), float(p[1]), float(p[2]))
+
+
+def find_bites(
+    centerline: ArrayLike,
+    tissue_point: ArrayLike,
+    tissue_normal: ArrayLike,
+    min_depth: float = MIN_DEPTH,
+) -> list[Bite]:
+    """The thread's passages through the tissue, in order along the centerline.
+
+    Args:
+        centerline: N x 3 suture centerline, world frame [m].
+        tissue_point: a point of the tissue surface [m].
+        tissue_normal: the surface's outward normal (normalised here).
+        min_depth: depth under the plane that counts as inside [m].
+
+    Returns:
+        The complete bites (a run reaching an end of the centerline has no exit and
+        is left out).
+    """
+    pts = _points(centerline)
+    n = np.asarray(tissue_normal, dtype=float)
+    n = n / np.linalg.norm(n)
+    h = (pts - np.asarray(tissue_point, dtype=float)) @ n
+    inside = h < -min_depth
+    bites: list[Bite] = []
+    k = 0
+    while k < len(pts):
+        if not inside[k]:
+            k += 1
+            continue
+        first = k
+        while k < len(pts) and inside[k]:
+            k += 1
+        last = k - 1
+        # the plane crossings around the run: walk out to the last point above the plane
+        i = first
+        while i > 0 and h[i - 1] < 0.0:
+            i -= 1
+        j = last
+        while j < len(pts) - 1 and h[j + 1] < 0.0:
+            j += 1
+        if i == 0 or j == len(pts) - 1:
+            continue
+        entry = _crossing(pts[i - 1], pts[i], float(h[i - 1]), float(h[i]))
+        exit_ = _crossing(pts[j], pts[j + 1], float(h[j]), float(h[j + 1]))
+        bites.append(Bite(entry, exit_, float(-h[first : last + 1].min()), first, last))
+    return bites
+
+
+def _declared_pairs(
+    points: Mapping[str, Sequence[float]],
+) -> list[tuple[str, FloatArray, FloatArray]]:
+    """``(suffix, entry, exit)`` for every declared ``entry<s>`` with an ``exit<s>``."""
+    out = []
+    for name, value in points.items():
+        if not name.startswith("entry"):
+            continue
+        suffix = name[len("entry") :]
+        other = points.get("exit" + suffix)
+        if other is not None:
+            out.append(
+                (suffix.lstrip("_"), np.asarray(value, dtype=float), np.asarray(other, float))
+            )
+    return out
+
+
+def _mean_sd(values: Sequence[float]) -> tuple[float | None, float | None]:
+    if not values:
+        return None, None
+    arr = np.asarray(values, dtype=float)
+    sd = float(arr.std(ddof=1)) if len(arr) > 1 else 0.0
+    return float(arr.mean()), sd
+
+
+def stitch_metrics(
+    bites: Sequence[Bite], declared: Mapping[str, Sequence[float]] | None = None
+) -> dict[str, Any]:
+    """STAR-style metrics of the bites (see the module docstring), JSON-ready, in mm.
+
+    Args:
+        bites: the bites, in order along the thread.
+        declared: the scene's named tissue points (``entry``/``exit`` or
+            ``entry_k``/``exit_k``) [m]; None: no position errors.
+
+    Returns:
+        ``count``; per bite (lists, in order) ``entry_error_mm``, ``exit_error_mm``,
+        ``bite_depth_mm`` and the matched ``site`` ("" for ``entry``/``exit``, else the
+        suffix); ``spacing_mean_mm`` and ``spacing_sd_mm`` between consecutive bite
+        centres (None with fewer than two bites).
+    """
+    pairs = _declared_pairs(declared or {})
+    entry_err: list[float | None] = []
+    exit_err: list[float | None] = []
+    sites: list[str | None] = []
+    for b in bites:
+        e, x = np.asarray(b.entry), np.asarray(b.exit)
+        best: tuple[float, float, str] | None = None
+        for suffix, pe, px in pairs:
+            straight = (float(np.linalg.norm(e - pe)), float(np.linalg.norm(x - px)))
+            swapped = (float(np.linalg.norm(x - pe)), float(np.linalg.norm(e - px)))
+            for de, dx in (straight, swapped):
+                if best is None or de + dx < best[0] + best[1]:
+                    best = (de, dx, suffix)
+        if best is None:
+            entry_err.append(None)
+            exit_err.append(None)
+            sites.append(None)
+        else:
+            entry_err.append(round(1e3 * best[0], 4))
+            exit_err.append(round(1e3 * best[1], 4))
+            sites.append(best[2])
+    centres = [0.5 * (np.asarray(b.entry) + np.asarray(b.exit)) for b in bites]
+    spacing = [float(np.linalg.norm(b - a)) * 1e3 for a, b in itertools.pairwise(centres)]
+    mean, sd = _mean_sd(spacing)
+    return {
+        "count": len(bites),
+        "site": sites,
+        "entry_error_mm": entry_err,
+        "exit_error_mm": exit_err,
+        "bite_depth_mm": [round(1e3 * b.depth, 4) for b in bites],
+        "spacing_mean_mm": None if mean is None else round(mean, 4),
+        "spacing_sd_mm": None if sd is None else round(sd, 4),
+    }
+
+
+def tension_metrics(
+    estimated: Iterable[float], true: Iterable[float] | None = None
+) -> dict[str, float | None]:
+    """Peak and final tension [N] of the estimate and, when simulated, of the thread.
+
+    Args:
+        estimated: the recorded estimated tension, in time order [N].
+        true: the thread's true tension in time order [N] (None: no thread).
+    """
+
+    def peak_final(values: Iterable[float] | None) -> tuple[float | None, float | None]:
+        peak: float | None = None
+        last: float | None = None
+        for v in values or ():
+            if not math.isfinite(v):
+                continue
+            last = float(v)
+            peak = last if peak is None else max(peak, last)
+        return peak, last
+
+    pe, fe = peak_final(estimated)
+    pt, ft = peak_final(true)
+    return {
+        "peak_tension_N": pe,
+        "final_tension_N": fe,
+        "peak_true_tension_N": pt,
+        "final_true_tension_N": ft,
+    }
+
+
+def _pieces(pts: FloatArray, bites: Sequence[Bite]) -> list[FloatArray]:
+    """The centerline cut at the arc-length midpoints between consecutive bites."""
+    if len(bites) < 2:
+        return [pts]
+    arc = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(pts, axis=0), axis=1))])
+    cuts = [0]
+    for a, b in itertools.pairwise(bites):
+        middle = 0.5 * (arc[a.last] + arc[b.first])
+        cuts.append(int(np.searchsorted(arc, middle)))
+    cuts.append(len(pts))
+    return [pts[c0 : max(c1 + 1, c0 + 2)] for c0, c1 in itertools.pairwise(cuts)]
+
+
+def knot_entries(
+    centerline: ArrayLike,
+    tissue_point: ArrayLike,
+    tissue_normal: ArrayLike,
+    contact_diameter: float | None,
+    bites: Sequence[Bite] | None = None,
+) -> list[dict[str, Any]]:
+    """One knot entry per stitch (see the module docstring).
+
+    Args:
+        centerline: N x 3 ground-truth centerline [m].
+        tissue_point: a point of the tissue surface [m].
+        tissue_normal: the surface's outward normal.
+        contact_diameter: the simulated thread's contact diameter [m] for
+            ``post_straight`` (None: ``post_straight`` is null, with a reason).
+        bites: the bites (None: found here).
+
+    Returns:
+        The entries, in order along the thread (one when there are fewer than two
+        bites); an entry that cannot be classified carries ``type`` None and ``error``.
+    """
+    from suture_engine.errors import SutureError
+    from suture_engine.suture.geometry import knot_summary
+    from suture_engine.suture.knot import knot_lay
+
+    pts = _points(centerline)
+    if bites is None:
+        bites = find_bites(pts, tissue_point, tissue_normal)
+    out: list[dict[str, Any]] = []
+    for k, piece in enumerate(_pieces(pts, bites)):
+        try:
+            entry = dict(
+                knot_summary(piece, tissue_point=tissue_point, tissue_normal=tissue_normal)
+            )
+        except (SutureError, ValueError) as exc:  # a degenerate piece
+            entry = {"type": None, "error": str(exc)}
+        if len(bites) > 1:
+            entry["stitch"] = k + 1
+        if contact_diameter is None:
+            entry["post_straight"] = None
+            entry["post_straight_reason"] = "the backend gives no thread contact diameter"
+        else:
+            try:
+                lay = knot_lay(piece, diameter=contact_diameter)
+                entry["post_straight"] = lay.post_straight
+                entry["lay"] = lay.lay
+            except ValueError as exc:
+                entry["post_straight"] = None
+                entry["post_straight_reason"] = str(exc)
+        out.append(entry)
+    return out
+
+
+class TraceEvaluation(NamedTuple):
+    """What :func:`evaluate_trace` finds in a trace.
+
+    Attributes:
+        knot: one knot entry (a dict) or several (a list), None without a centerline.
+        metrics: ``stitches`` (:func:`stitch_metrics`, None without a centerline) and
+            the tension figures of :func:`tension_metrics`.
+    """
+
+    knot: dict[str, Any] | list[dict[str, Any]] | None
+    metrics: dict[str, Any]
+
+
+def _centerline(message: Mapping[str, Any]) -> FloatArray | None:
+    if "centerline" in message:
+        return np.asarray(message["centerline"], dtype=float)
+    if {"x", "y", "z"} <= set(message):
+        return np.column_stack([message["x"], message["y"], message["z"]]).astype(float)
+    return None
+
+
+def evaluate(
+    centerline: ArrayLike | None,
+    estimated: Iterable[float],
+    true: Iterable[float] | None,
+    tissue_point: ArrayLike,
+    tissue_normal: ArrayLike,
+    declared: Mapping[str, Sequence[float]] | None = None,
+    contact_diameter: float | None = None,
+) -> TraceEvaluation:
+    """Knots and metrics from a final centerline and tension series (see the module)."""
+    metrics: dict[str, Any] = dict(tension_metrics(estimated, true))
+    if centerline is None:
+        metrics["stitches"] = None
+        return TraceEvaluation(None, metrics)
+    pts = _points(centerline)
+    bites = find_bites(pts, tissue_point, tissue_normal)
+    metrics["stitches"] = stitch_metrics(bites, declared)
+    entries = knot_entries(pts, tissue_point, tissue_normal, contact_diameter, bites)
+    knot: dict[str, Any] | list[dict[str, Any]] = entries[0] if len(entries) == 1 else entries
+    return TraceEvaluation(knot, metrics)
+
+
+def evaluate_trace(
+    path: str | Path,
+    tissue_point: ArrayLike,
+    tissue_normal: ArrayLike,
+    declared: Mapping[str, Sequence[float]] | None = None,
+    contact_diameter: float | None = None,
+) -> TraceEvaluation:
+    """Evaluate a recorded trace: its last ``/ground_truth/suture`` centerline, its
+    ``/ground_truth/tension`` and ``/tension/estimated`` series.
+
+    Args:
+        path: the trace file.
+        tissue_point: a point of the tissue surface [m].
+        tissue_normal: the surface's outward normal.
+        declared: the scene's named tissue points [m].
+        contact_diameter: the simulated thread's contact diameter [m].
+
+    Raises:
+        TraceError: the trace cannot be read.
+    """
+    from suture_engine.trace import channels
+    from suture_engine.trace.reader import TraceReader
+
+    topics = [channels.GROUND_TRUTH_SUTURE, channels.GROUND_TRUTH_TENSION]
+    topics.append(channels.TENSION_ESTIMATED)
+    centerline: FloatArray | None = None
+    estimated: list[float] = []
+    true: list[float] = []
+    for msg in TraceReader(path).messages(topics):
+        if msg.topic == channels.GROUND_TRUTH_SUTURE:
+            centerline = _centerline(msg.data) if msg.data else centerline
+        elif msg.topic == channels.GROUND_TRUTH_TENSION:
+            true.append(float(msg.data["tension_N"]))
+        else:
+            estimated.append(float(msg.data["tension_N"]))
+    return evaluate(
+        centerline,
+        estimated,
+        true if true else None,
+        tissue_point,
+        tissue_normal,
+        declared,
+        contact_diameter,
+    )

@@ -1,0 +1,207 @@
+"""A run's evaluation (knots per stitch, STAR-style stitch metrics) on hand-built threads.
+
+Oracles: centerlines built here from known pieces (bites of known pierce points
+and depth, the classifier-verified hand-built knots of
+:mod:`suture_engine.suture.curves`), and traces written with the trace writer
+around :func:`suture_engine.trace.synthetic.synthetic_messages`.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from suture_engine.runtime.evaluation import (
+    evaluate,
+    evaluate_trace,
+    find_bites,
+    knot_entries,
+    stitch_metrics,
+    tension_metrics,
+)
+from suture_engine.suture import curves
+
+MM = 1e-3
+NORMAL = (0.0, 0.0, 1.0)
+SURFACE = (0.0, 0.0, 0.0)
+
+
+def _bite(x: float, depth: float, half_width: float = 4 * MM, n: int = 41) -> np.ndarray:
+    """Through the tissue along +y at x: in at (x, -w, 0), out at (x, +w, 0), depth at y = 0."""
+    y = np.linspace(-half_width, half_width, n)
+    z = -depth * np.sin(np.pi * (y + half_width) / (2 * half_width))
+    return np.c_[np.full(n, x), y, z]
+
+
+def _knot(kind: str | None, start: np.ndarray) -> np.ndarray:
+    """A hand-built knot (0.5 mm per unit) laid along x above the tissue, from ``start``."""
+    if kind is None:
+        return start + np.array([[0.0, 0.0, 3 * MM], [10 * MM, 0.0, 3 * MM]])
+    shape = {"square": curves.square_knot, "granny": curves.granny_knot}[kind]() * 0.5 * MM
+    shape = shape - shape[0] + start + np.array([0.0, 0.0, 3 * MM])  # knot z in [-1, 3] units above
+    return shape
+
+
+def _thread(sites: list[tuple[float, float, str | None]]) -> np.ndarray:
+    """Tail on the surface, then per stitch: bite, knot, a long detour to the next bite."""
+    parts = [np.array([[sites[0][0] - 10 * MM, -4 * MM, 1 * MM]])]
+    for k, (x, depth, kind) in enumerate(sites):
+        parts.append(_bite(x, depth))
+        knot = _knot(kind, np.array([x, 8 * MM, 0.0]))
+        parts.append(np.array([[x, 6 * MM, 2 * MM]]))
+        parts.append(knot)
+        end = knot[-1]
+        nxt = sites[k + 1][0] if k + 1 < len(sites) else x + 10 * MM
+        # up high and back: a connector longer than any knot, so the cut lands in it
+        parts.append(
+            np.array(
+                [
+                    [end[0], 30 * MM, 5 * MM],
+                    [end[0], 30 * MM, 150 * MM],
+                    [nxt, -30 * MM, 150 * MM],
+                    [nxt, -30 * MM, 5 * MM],
+                    [nxt, -6 * MM, 1 * MM],
+                ]
+            )
+        )
+    return np.vstack(parts)
+
+
+LAYS = ("square", "half-hitches", "undetermined", "no-knot")
+SITES = [(-5 * MM, 2.0 * MM, "square"), (0.0, 3.0 * MM, None), (6 * MM, 2.5 * MM, "granny")]
+
+
+def test_bites_are_found_with_their_pierce_points_and_depth() -> None:
+    bites = find_bites(_thread(SITES), SURFACE, NORMAL)
+    assert len(bites) == 3
+    for b, (x, depth, _) in zip(bites, SITES, strict=True):
+        np.testing.assert_allclose(b.entry, (x, -4 * MM, 0.0), atol=1e-12)
+        np.testing.assert_allclose(b.exit, (x, 4 * MM, 0.0), atol=1e-12)
+        assert b.depth == pytest.approx(depth, rel=1e-12)
+
+
+def test_pierce_points_interpolate_between_samples_on_a_tilted_plane() -> None:
+    # a bite whose samples straddle the plane: the crossing is the linear interpolation
+    pts = np.array([[0.0, -2.0, 1.0], [0.0, 0.0, -1.0], [0.0, 1.0, -1.0], [0.0, 3.0, 3.0]]) * MM
+    tilt = np.array([0.0, 0.6, 0.8])  # plane through the origin, tilted about x
+    rot = np.array([[1.0, 0.0, 0.0], [0.0, 0.8, -0.6], [0.0, 0.6, 0.8]])  # e_z -> tilt
+    assert rot.T @ np.array([0, 0, 1.0]) == pytest.approx(tilt)
+    bites = find_bites(pts @ rot, SURFACE, tilt)
+    assert len(bites) == 1
+    np.testing.assert_allclose(bites[0].entry, np.array([0.0, -1.0, 0.0]) * MM @ rot, atol=1e-12)
+    np.testing.assert_allclose(bites[0].exit, np.array([0.0, 1.5, 0.0]) * MM @ rot, atol=1e-12)
+    assert bites[0].depth == pytest.approx(1.0 * MM)
+
+
+def test_stitch_metrics_against_the_declared_points() -> None:
+    bites = find_bites(_thread(SITES), SURFACE, NORMAL)
+    declared = {
+        "entry_1": (-5.3 * MM, -4 * MM, 0.0),  # 0.3 mm off
+        "exit_1": (-5 * MM, 4.4 * MM, 0.0),  # 0.4 mm off
+        "entry_2": (0.0, -4 * MM, 0.0),
+        "exit_2": (0.0, 4 * MM, 0.0),
+        "entry_3": (5 * MM, -4 * MM, 0.0),  # 1 mm off (the bite is at x = 6 mm)
+        "exit_3": (5 * MM, 4 * MM, 0.0),
+        "anchor": (0.0, 0.0, 0.0),  # not an entry/exit pair: ignored
+    }
+    m = stitch_metrics(bites, declared)
+    assert m["count"] == 3 and m["site"] == ["1", "2", "3"]
+    assert m["entry_error_mm"] == pytest.approx([0.3, 0.0, 1.0], abs=1e-9)
+    assert m["exit_error_mm"] == pytest.approx([0.4, 0.0, 1.0], abs=1e-9)
+    assert m["bite_depth_mm"] == pytest.approx([2.0, 3.0, 2.5])
+    # centres at x = -5, 0, 6 mm: spacings 5 and 6 mm
+    assert m["spacing_mean_mm"] == pytest.approx(5.5)
+    assert m["spacing_sd_mm"] == pytest.approx(math.sqrt(0.5), abs=1e-4)  # rounded to 0.1 um
+
+
+def test_a_thread_that_went_in_at_the_exit_is_matched_both_ways() -> None:
+    reverse = _bite(0.0, 2 * MM)[::-1]  # in at +y, out at -y
+    pts = np.vstack([[[0.0, 6 * MM, 1 * MM]], reverse, [[0.0, -6 * MM, 1 * MM]]])
+    m = stitch_metrics(
+        find_bites(pts, SURFACE, NORMAL), {"entry": (0.0, -4 * MM, 0.0), "exit": (0.0, 4 * MM, 0.0)}
+    )
+    assert m["site"] == [""] and m["entry_error_mm"] == [0.0] and m["exit_error_mm"] == [0.0]
+    assert m["spacing_mean_mm"] is None and m["spacing_sd_mm"] is None
+
+
+def test_one_knot_entry_per_stitch() -> None:
+    from suture_engine.suture.knot import knot_lay
+
+    pts = _thread(SITES)
+    entries = knot_entries(pts, SURFACE, NORMAL, contact_diameter=0.5 * MM)
+    assert [e["type"] for e in entries] == ["square", "unknot", "granny"]
+    assert [e["stitch"] for e in entries] == [1, 2, 3]
+    assert [(e["determinant"], e["v2"], e["v3"]) for e in entries[::2]] == [(9, 2, 0), (9, 2, 2)]
+    assert all(e["seated"] is False for e in entries)  # the knots sit 2-3 mm above
+    # the whole thread is the connected sum: what a single entry would (wrongly) say
+    whole = knot_entries(pts, SURFACE, NORMAL, 0.5 * MM, bites=[])
+    assert len(whole) == 1 and whole[0]["type"] not in ("square", "granny", "unknot")
+    for e in entries:  # knot_lay's verdict on the stitch's own piece
+        assert e["post_straight"] in (True, False, None) and e["lay"] in LAYS
+    first = pts[: int(np.argmax(pts[:, 2] > 100 * MM))]  # up to the first detour's top
+    assert entries[0]["lay"] == knot_lay(first, diameter=0.5 * MM).lay
+
+
+def test_post_straight_is_null_with_a_reason_without_a_contact_diameter() -> None:
+    one = _thread(SITES[:1])
+    entries = knot_entries(one, SURFACE, NORMAL, contact_diameter=None)
+    assert len(entries) == 1 and "stitch" not in entries[0]
+    assert entries[0]["type"] == "square"
+    assert entries[0]["post_straight"] is None and entries[0]["post_straight_reason"]
+
+
+def test_tension_metrics_peak_and_final() -> None:
+    m = tension_metrics([0.1, 2.5, math.nan, 1.0], [0.2, 3.0, 0.9])
+    assert m == {
+        "peak_tension_N": 2.5,
+        "final_tension_N": 1.0,
+        "peak_true_tension_N": 3.0,
+        "final_true_tension_N": 0.9,
+    }
+    assert tension_metrics([], None)["peak_true_tension_N"] is None
+
+
+def test_evaluate_without_a_thread() -> None:
+    ev = evaluate(None, [1.0, 0.5], None, SURFACE, NORMAL)
+    assert ev.knot is None and ev.metrics["stitches"] is None
+    assert ev.metrics["peak_tension_N"] == 1.0 and ev.metrics["final_tension_N"] == 0.5
+
+
+def test_evaluate_trace_reads_the_last_centerline_and_the_tension_channels(tmp_path: Path) -> None:
+    from suture_engine.trace import channels
+    from suture_engine.trace.synthetic import synthetic_messages, synthetic_meta
+    from suture_engine.trace.writer import TraceWriter
+
+    path = tmp_path / "t.mcap"
+    final = _thread(SITES)
+    with TraceWriter(path, synthetic_meta()) as w:
+        last_ns = 0
+        for topic, t_ns, msg in synthetic_messages(0.3):
+            w.write(topic, t_ns, msg)
+            last_ns = t_ns
+        # the recorder's centerline message, after the synthetic ones ({"x","y","z"})
+        w.write(channels.GROUND_TRUTH_SUTURE, last_ns, {"centerline": final.tolist()})
+    ev = evaluate_trace(path, SURFACE, NORMAL, contact_diameter=0.5 * MM)
+    assert isinstance(ev.knot, list) and [k["type"] for k in ev.knot] == [
+        "square",
+        "unknot",
+        "granny",
+    ]
+    assert ev.metrics["stitches"]["count"] == 3
+    # the synthetic tension: 1 + 0.5 sin(2 pi 0.2 t) (+ up to 0.01 N noise on the estimate)
+    t = np.arange(300) * 1e-3
+    true = 1.0 + 0.5 * np.sin(2 * np.pi * 0.2 * t)
+    assert ev.metrics["peak_true_tension_N"] == pytest.approx(true.max())
+    assert ev.metrics["final_true_tension_N"] == pytest.approx(true[-1])
+    assert true[-1] <= ev.metrics["final_tension_N"] <= true[-1] + 0.01
+    # a synthetic trace's own centerlines ({"x","y","z"}, on the plane): no bite, one entry
+    plain = tmp_path / "p.mcap"
+    with TraceWriter(plain, synthetic_meta()) as w:
+        for topic, t_ns, msg in synthetic_messages(0.1):
+            w.write(topic, t_ns, msg)
+    ev = evaluate_trace(plain, SURFACE, NORMAL)
+    assert isinstance(ev.knot, dict) and ev.knot["type"] == "unknot"
+    assert ev.metrics["stitches"]["count"] == 0
