@@ -15,7 +15,7 @@ backend and changes what crosses the boundary:
 - **blow-up**: ``nan`` makes every measurement NaN from the onset on (the physics
   state is lost); ``energy`` pushes the tool tip with a force that grows
   exponentially (:data:`ENERGY_START_N`, :data:`ENERGY_GROWTH_S`, capped at
-  :data:`ENERGY_CAP_N`) through ``apply_external_force``.
+  :data:`ENERGY_CAP_N`, world +z) through ``apply_external_force``.
 
 Every onset and end goes to ``sink(time_ns, message)`` (see
 :mod:`~suture_engine.faults.record`); messages produced before a sink is attached
@@ -204,7 +204,10 @@ class FaultyBackend:
                     age = (schedule.tick - onset.start) * self.dt
                     mag = min(ENERGY_CAP_N, ENERGY_START_N * math.exp(age / ENERGY_GROWTH_S))
                     for name in self._targets(f):
-                        self.inner.apply_external_force(name, (0.0, 0.0, mag), self.dt)
+                        # held two periods, at half the magnitude: the backends apply it
+                        # in both steps (about ``mag`` on the arm), and a model-only backend
+                        # that reads its forces at the measurement also measures it
+                        self.inner.apply_external_force(name, (0.0, 0.0, 0.5 * mag), 2 * self.dt)
         self.inner.step()
 
     def geometry(self) -> SceneGeometry:

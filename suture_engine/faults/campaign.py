@@ -314,9 +314,9 @@ def run_job(job: CampaignJob, python: str = sys.executable) -> CampaignRow:
         return _row(job, "crash", code, error=error[:300])
 
     try:
-        proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=1800)
+        proc = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=900)
     except subprocess.TimeoutExpired:
-        return crash(-1, "hung (30 min)")
+        return crash(-1, "hung (15 min wall)")
     output = proc.stdout + proc.stderr
     if proc.returncode not in (0, 1) or "Traceback" in output:
         return crash(proc.returncode, " | ".join(output.strip().splitlines()[-3:]))

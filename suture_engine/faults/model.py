@@ -117,6 +117,16 @@ def _value_unit(kind: str, sensor: str | None, joint: str | None) -> str | None:
     return None
 
 
+def _unit_error(expected: str, found: str) -> Exception:
+    from pydantic_core import PydanticCustomError
+
+    return PydanticCustomError(
+        "unit_mismatch",
+        "expected {expected}, found {found}",
+        {"expected": expected, "found": found},
+    )
+
+
 def _check_range(kind: str, value: float) -> None:
     if kind == "noise" and value <= 0.0:
         raise ValueError(f"the noise's standard deviation must be > 0, found {value:g}")
@@ -209,19 +219,13 @@ class Fault(BaseModel):
             found = dimension_name(q.dim)
             if unit is None:  # encoder noise/bias without a joint
                 if found not in ("angle", "length"):
-                    raise ValueError(
-                        f"encoder {kind}: expected an angle (rotary joints) or a length "
-                        f"(insertion), found {found}"
-                    )
+                    raise _unit_error("an angle (rotary joints) or a length (insertion)", found)
             else:
                 from suture_engine.language.units import parse_unit
 
                 want = parse_unit(unit)[1] if unit else (0, 0, 0, 0)
                 if q.dim != want:
-                    raise ValueError(
-                        f"a {kind} value is a {dimension_name(want)} "
-                        f"({unit or 'no unit'}), found {found}"
-                    )
+                    raise _unit_error(f"{dimension_name(want)} ({unit or 'no unit'})", found)
             value = q.value
         else:
             raise ValueError("expected a number or a quantity")

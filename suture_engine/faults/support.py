@@ -44,8 +44,18 @@ exploding-force blow-up)."""
 
 
 def supported_kinds(backend: str) -> frozenset[str]:
-    """The fault kinds ``backend`` simulates (a third-party backend: the generic ones)."""
-    return BACKEND_FAULTS.get(backend, GENERIC_FAULTS)
+    """The fault kinds ``backend`` simulates.
+
+    Variants of the surgical backend (e.g. ``pybullet-surgical-stitched``) are taken as
+    the surgical one. A backend not in :data:`BACKEND_FAULTS` (a plugin) is given every
+    kind here: the wrapper then refuses, before the run, a fault whose hook the backend
+    does not have (``inject_grasp_slip``, ``inject_snag``, ``apply_external_force``).
+    """
+    if backend in BACKEND_FAULTS:
+        return BACKEND_FAULTS[backend]
+    if backend.startswith("pybullet-surgical"):
+        return BACKEND_FAULTS["pybullet-surgical"]
+    return _ALL
 
 
 def _key(fault: Fault) -> str:

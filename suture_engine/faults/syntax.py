@@ -112,17 +112,15 @@ def _strip_span(text: str, start: int, end: int) -> tuple[str, int]:
     return part.strip(), start + lead
 
 
+_RATE = re.compile(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?)\s*(1/s|/s|Hz|hz)?\s*$")
+
+
 def _rate(text: str) -> str:
     """``2/s``, ``2 /s``, ``2 1/s``, ``2 Hz`` or ``2`` as a quantity in 1/s."""
-    t = text.replace(" ", "")
-    if t.endswith("1/s"):
-        t = t[:-3]
-    elif t.endswith("/s"):
-        t = t[:-2]
-    elif t.lower().endswith("hz"):
-        t = t[:-2]
-    float(t)  # ValueError when not a number
-    return f"{t} 1/s"
+    match = _RATE.match(text)
+    if match is None:
+        raise ValueError(text)
+    return f"{match.group(1)} 1/s"
 
 
 def _trigger(spec: str, text: str, pos: int, out: dict[str, Any], where: dict[str, int]) -> None:
