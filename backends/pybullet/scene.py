@@ -255,8 +255,13 @@ def build_scene(
             if kind == "grasper":
                 scene.tools[name] = Grasper.create(client, name, pos, suture=suture)
             elif kind == "stitcher":
+                # The stitcher holds the needle: it stands at the needle's end of the thread.
+                tip = suture.centerline()[-1]
                 scene.tools[name] = Stitcher.create(
-                    client, name, pos, needle_body=suture.needle_body
+                    client,
+                    name,
+                    (float(tip[0]), float(tip[1]), float(tip[2])),
+                    needle_body=suture.needle_body,
                 )
             else:
                 raise SceneError(f"tools.{name}", kind, ["grasper", "stitcher"])
@@ -521,6 +526,13 @@ def _build_model(
     suture = Suture.create(client, path, params)
     if threaded:
         tissue.thread(suture)
+    # The needle punctures the tissue (Tissue.track); the robots' instruments pass
+    # through the pad too (its surface is where the stitch is made, not an obstacle).
+    tissue.track(suture)
+    for robot in robots.values():
+        for link in range(-1, p.getNumJoints(robot.body_id, physicsClientId=client)):
+            for body in tissue.bodies:
+                p.setCollisionFilterPair(robot.body_id, body, link, -1, 0, physicsClientId=client)
     scene = Scene(client=client, seed=seed, suture=suture, tissue=tissue, robots=robots, hold=hold)
     scene.rng = np.random.default_rng(seed)
     for name, spec in sorted(model.robots.items()):

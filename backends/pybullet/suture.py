@@ -425,7 +425,8 @@ class Suture:
         return self
 
     def _add_needle(self) -> None:
-        """Attach a half-circle needle (rigid, 5 capsules) at the last capsule's tip."""
+        """Attach a half-circle needle (rigid, 5 capsules) at the last capsule's tip, by a
+        ball joint at the needle's swaged end (its frame origin)."""
         import pybullet as p
 
         prm, c = self.params, self.client
@@ -471,12 +472,14 @@ class Suture:
             angularDamping=prm.angular_damping,
             physicsClientId=c,
         )
+        # Swaged: the thread swivels freely at the needle's back end (a ball joint), so a
+        # needle held in a jaw does not make the last capsule a rigid stick on the tool.
         self._needle_link = p.createConstraint(
             self.bodies[-1],
             -1,
             self.needle_body,
             -1,
-            p.JOINT_FIXED,
+            p.JOINT_POINT2POINT,
             [0, 0, 0],
             [0, 0, prm.segment_length / 2],
             [0, 0, 0],

@@ -103,7 +103,7 @@ class Tissue:
     depth: float
     f_static: float = 0.3
     f_viscous: float = 2.0
-    k_lateral: float = 200.0
+    k_lateral: float = 1000.0
     c_lateral: float = 0.2
     capture: float = 3e-3
     bodies: list[int] = field(default_factory=list)
@@ -114,6 +114,18 @@ class Tissue:
     _anchors: dict[int, int] = field(default_factory=dict)
     last_friction: float = 0.0
     last_sliding_speed: float = 0.0
+    surface: Vec3 = (0.0, 0.0, 0.0)
+    half_size: tuple[float, float] = (0.02, 0.02)
+    punctured: bool = False
+    """Whether a tracked needle has entered the tissue (:meth:`track`)."""
+    exited: bool = False
+    """Whether it has come out again: the channel is then its path through the tissue."""
+    _tracked: Suture | None = None
+    _path: list[FloatArray] = field(default_factory=list)
+    _last_end: FloatArray | None = None
+    _snag_extra: float = 0.0
+    _snag_steps: int = 0
+    _sigma: float | None = None
 
     @classmethod
     def create(
@@ -163,6 +175,8 @@ class Tissue:
             exit=exit,
             normal=(float(n[0]), float(n[1]), float(n[2])),
             depth=depth,
+            surface=(float(center[0]), float(center[1]), float(center[2])),
+            half_size=(size[0] / 2, size[1] / 2),
             **kwargs,  # type: ignore[arg-type]
         )
         s = np.linspace(0.0, 1.0, 25)
@@ -191,11 +205,112 @@ class Tissue:
         """Declare that ``suture`` passes through the stitch channel (after the needle pass)."""
         self.suture = suture
 
+    def track(self, suture: Suture) -> None:
+        """Let ``suture``'s needle puncture the tissue (the puncture model).
+
+        The needle passes through the pad (no collision); its swaged end, where the
+        thread starts, is followed each :meth:`pre_step`. When it goes below the surface
+        inside the pad, the tissue is punctured: the channel becomes the path of the
+        swaged end from that surface crossing on, and the thread is :meth:`thread`-ed
+        into it (captured: guided and held by the friction (4.5)) as it follows. When
+        the swaged end comes back above the surface, the channel is closed at that exit
+        point and stays as it is. One stitch per tissue: a later puncture is not made
+        (nor is one on a tissue already threaded), but the needle still passes through.
+        """
+        import pybullet as p
+
+        self._tracked = suture
+        if self.suture is not None:  # already threaded: the stitch is made
+            self.punctured = self.exited = True
+        for body in self.bodies:
+            p.setCollisionFilterPair(
+                suture.needle_body, body, -1, -1, 0, physicsClientId=self.client
+            )
+
+    def snag(self, extra_static: float, duration: float) -> None:
+        """Add ``extra_static`` [N] to the static friction F_s (4.5) for ``duration`` [s]
+        (a snag of the thread in the tissue; counted in :meth:`pre_step` calls)."""
+        import pybullet as p
+
+        dt = float(p.getPhysicsEngineParameters(physicsClientId=self.client)["fixedTimeStep"])
+        self._snag_extra = float(extra_static)
+        self._snag_steps = max(1, round(duration / dt))
+
+    def _pass_through(self, index: int, through: bool) -> None:
+        """Let thread capsule ``index`` pass through the pad (no collision), or not."""
+        import pybullet as p
+
+        sut = self.suture or self._tracked
+        if sut is None:
+            return
+        for body in self.bodies:
+            p.setCollisionFilterPair(
+                sut.bodies[index], body, -1, -1, int(not through), physicsClientId=self.client
+            )
+        if through:
+            self._passing.add(index)
+        else:
+            self._passing.discard(index)
+
+    def _height(self, x: FloatArray) -> float:
+        """Height of ``x`` above the pad's top surface [m]."""
+        return float(np.asarray(self.normal) @ (x - np.asarray(self.surface)))
+
+    def _over_pad(self, x: FloatArray) -> bool:
+        n = np.asarray(self.normal)
+        d = x - np.asarray(self.surface)
+        d = d - n * float(n @ d)
+        ex = np.asarray(self.exit) - np.asarray(self.entry)
+        ex = ex - n * float(n @ ex)
+        ex = ex / np.linalg.norm(ex)
+        ey = np.cross(n, ex)
+        return abs(float(d @ ex)) <= self.half_size[0] and abs(float(d @ ey)) <= self.half_size[1]
+
+    def _crossing(self, a: FloatArray, b: FloatArray) -> FloatArray:
+        """Where the segment a -> b crosses the surface [m]."""
+        ha, hb = self._height(a), self._height(b)
+        t = ha / (ha - hb) if ha != hb else 0.0
+        out: FloatArray = a + min(max(t, 0.0), 1.0) * (b - a)
+        return out
+
+    def _track_needle(self) -> None:
+        """The puncture model (:meth:`track`): follow the needle's swaged end."""
+        import pybullet as p
+
+        sut = self._tracked
+        if sut is None or self.exited:
+            return
+        # The needle's frame origin is its swaged end, where the thread is attached.
+        pos, _ = p.getBasePositionAndOrientation(sut.needle_body, physicsClientId=self.client)
+        end = np.asarray(pos, dtype=float)
+        last = self._last_end if self._last_end is not None else end
+        self._last_end = end
+        below = self._height(end) < 0.0
+        if not self.punctured:
+            if below and self._over_pad(end):
+                self.punctured = True
+                entry = self._crossing(last, end)
+                self._path = [entry, end]
+                self.entry = (float(entry[0]), float(entry[1]), float(entry[2]))
+                self.channel = np.array(self._path)
+                self.suture = sut
+            return
+        if below:
+            if np.linalg.norm(end - self._path[-1]) > 0.25e-3:
+                self._path.append(end)
+            self.channel = np.array([*self._path[:-1], end])
+            return
+        exit_ = self._crossing(last, end)
+        self._path.append(exit_)
+        self.exit = (float(exit_[0]), float(exit_[1]), float(exit_[2]))
+        self.channel = _resample_polyline(np.array(self._path), 25)
+        self.exited = True
+
     def _project(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
         """Nearest channel point, unit tangent and channel parameter s of each point in x."""
         a, b = self.channel[:-1], self.channel[1:]
         u = b - a
-        uu = np.einsum("ij,ij->i", u, u)
+        uu = np.maximum(np.einsum("ij,ij->i", u, u), 1e-18)
         t = np.clip(np.einsum("kij,ij->ki", x[:, None, :] - a[None], u) / uu, 0.0, 1.0)
         q = a[None] + t[..., None] * u[None]
         d = np.linalg.norm(q - x[:, None, :], axis=2)
@@ -205,30 +320,91 @@ class Tissue:
         tangent = u[k] / np.sqrt(uu[k])[:, None]
         return q[idx, k], tangent, s
 
-    def pre_step(self) -> None:
-        """Apply channel guidance and friction (4.5) to the capsules inside the channel."""
+    def _thread_axes(self, sut: Suture) -> tuple[FloatArray, FloatArray]:
+        """Centre [m] and unit axis (tail to needle) of every capsule of ``sut``."""
         import pybullet as p
 
+        c = self.client
+        pos = np.empty((len(sut.bodies), 3))
+        axis = np.empty((len(sut.bodies), 3))
+        for i, b in enumerate(sut.bodies):
+            x, q = p.getBasePositionAndOrientation(b, physicsClientId=c)
+            pos[i] = x
+            axis[i] = p.getMatrixFromQuaternion(q)[2::3]
+        return pos, axis
+
+    def _closest_on(
+        self, x: FloatArray, pos: FloatArray, axis: FloatArray, i: int, h: float
+    ) -> float:
+        """Parameter t in [0, 1] of the point of capsule ``i``'s axis nearest ``x``."""
+        a = pos[i] - h * axis[i]
+        return min(max(float((x - a) @ axis[i]) / (2 * h), 0.0), 1.0)
+
+    def _update_sigma(self, pos: FloatArray, axis: FloatArray, h: float) -> None:
+        """Follow the thread's arc length at the entry point as the thread slides."""
+        seg = 2 * h
+        entry = np.asarray(self.channel[0])
+        n = len(pos)
+        if self._sigma is None:
+            window = range(n)
+        else:
+            k = int(self._sigma / seg)
+            window = range(max(0, k - 1), min(n, k + 2))
+        best, sigma = np.inf, 0.0
+        for i in window:
+            t = self._closest_on(entry, pos, axis, i, h)
+            d = float(np.linalg.norm(pos[i] + (2 * t - 1) * h * axis[i] - entry))
+            if d < best:
+                best, sigma = d, (i + t) * seg
+        self._sigma = sigma
+
+    def pre_step(self) -> None:
+        """Apply channel guidance and friction (4.5) to the thread in the channel.
+
+        The thread is followed by arc length: ``sigma`` [m], its arc length (from the tail
+        end) at the entry point, is updated each step from where the thread crosses it.
+        The thread from ``sigma`` to ``sigma`` plus the channel's length lies in the channel:
+        each channel sample point pulls the point of the capsule at that arc length nearest
+        it, across the capsule's axis only (``k_lateral`` [N/m] shared by the samples,
+        ``c_lateral`` [N*s/m]), so the thread passes through the puncture points and along
+        the channel but slides freely along itself, against the friction (4.5) alone.
+        """
+        import pybullet as p
+
+        self._track_needle()
+        if self._snag_steps > 0:
+            self._snag_steps -= 1
+            if self._snag_steps == 0:
+                self._snag_extra = 0.0
         sut = self.suture
-        if sut is None:
+        if sut is None and self._tracked is not None and not self._passing:
+            self._pass_through(len(self._tracked.bodies) - 1, True)
+        if sut is None or len(self.channel) < 2:
             return
         c = self.client
-        pos = np.array(
-            [p.getBasePositionAndOrientation(b, physicsClientId=c)[0] for b in sut.bodies]
+        pos, axes = self._thread_axes(sut)
+        seg = sut.params.segment_length
+        h = seg / 2
+        total = seg * len(pos)
+        self._update_sigma(pos, axes, h)
+        sigma = float(self._sigma or 0.0)
+        lam = np.concatenate(
+            [[0.0], np.cumsum(np.linalg.norm(np.diff(self.channel, axis=0), axis=1))]
         )
-        q, tangent, s = self._project(pos)
-        dist = np.linalg.norm(q - pos, axis=1)
-        inside = [i for i in range(len(pos)) if 0.0 < s[i] < 1.0 and dist[i] < self.capture]
-        # Capsules in the channel or crossing the surface at its ends pass through the pad.
-        hole = self.capture + sut.params.segment_length / 2
-        passing = {i for i in range(len(pos)) if dist[i] < hole}
+        span = float(lam[-1])
+        first = max(0, int(sigma / seg))
+        last = min(len(pos) - 1, int(min(sigma + span, total - 1e-12) / seg))
+        inside = list(range(first, last + 1)) if sigma < total else []
+        # The capsules in the channel and their neighbours pass through the pad.
+        passing = set(range(max(0, first - 1), min(len(pos), last + 2))) if inside else set()
+        if self._tracked is sut and sut.bodies:
+            passing.add(len(sut.bodies) - 1)  # the needle's own capsule goes where it goes
         for i in passing ^ self._passing:
-            enable = 0 if i in passing else 1
-            for tb in self.bodies:
-                p.setCollisionFilterPair(sut.bodies[i], tb, -1, -1, enable, physicsClientId=c)
+            self._pass_through(i, i in passing)
         self._passing = passing
         self.inside = inside
         # Friction the anchors applied in the last step, along the channel (4.5, static part).
+        _, tangent, _ = self._project(pos)
         static = 0.0
         for i, cons in list(self._anchors.items()):
             force = np.asarray(p.getConstraintState(cons, physicsClientId=c)[:3])
@@ -241,14 +417,6 @@ class Tissue:
             self.last_friction = self.last_sliding_speed = 0.0
             return
         vel = np.array([p.getBaseVelocity(sut.bodies[i], physicsClientId=c)[0] for i in inside])
-        axes = np.array(
-            [
-                p.getMatrixFromQuaternion(
-                    p.getBasePositionAndOrientation(sut.bodies[i], physicsClientId=c)[1]
-                )[2::3]
-                for i in inside
-            ]
-        )
         tan = tangent[inside]
         axial = np.einsum("ij,ij->i", vel, tan)
         l_dot = float(axial.mean())
@@ -256,9 +424,28 @@ class Tissue:
         dt = float(p.getPhysicsEngineParameters(physicsClientId=c)["fixedTimeStep"])
         c_visc = min(self.f_viscous / len(inside), 0.5 * mass / dt)
         c_lat = min(self.c_lateral, 0.5 * mass / dt)
-        cap = self.f_static / len(inside)
+        cap = (self.f_static + self._snag_extra) / len(inside)
         self.last_sliding_speed = l_dot
         self.last_friction = static - c_visc * len(inside) * l_dot
+        forces = {i: np.zeros(3) for i in inside}
+        k_point = self.k_lateral / len(self.channel)
+        for x, lj in zip(self.channel, lam, strict=True):
+            arc = sigma + float(lj)
+            if arc >= total:
+                break
+            i = min(int(arc / seg), len(pos) - 1)
+            t = self._closest_on(x, pos, axes, i, h)
+            at = pos[i] + (2 * t - 1) * h * axes[i]
+            err = x - at
+            err -= axes[i] * float(err @ axes[i])
+            p.applyExternalForce(
+                sut.bodies[i],
+                -1,
+                (k_point * err).tolist(),
+                at.tolist(),
+                p.WORLD_FRAME,
+                physicsClientId=c,
+            )
         for row, i in enumerate(inside):
             anchor = self._anchors.get(i)
             if anchor is None:
@@ -277,14 +464,8 @@ class Tissue:
             p.changeConstraint(
                 anchor, jointChildPivot=pos[i].tolist(), maxForce=cap, physicsClientId=c
             )
-            # Guidance acts across the capsule's own axis as well as across the channel,
-            # so where a straight capsule cuts a curved channel it cannot push the thread
-            # along itself (only friction acts along the thread).
-            err = pos[i] - q[i]
-            err -= tan[row] * float(err @ tan[row])
-            err -= axes[row] * float(err @ axes[row])
-            v_perp = vel[row] - tan[row] * axial[row]
-            force = -self.k_lateral * err - c_lat * v_perp - c_visc * axial[row] * tan[row]
+            v_perp = vel[row] - axes[i] * float(vel[row] @ axes[i])
+            force = forces[i] - c_lat * v_perp - c_visc * axial[row] * tan[row]
             p.applyExternalForce(
                 sut.bodies[i],
                 -1,
@@ -293,6 +474,17 @@ class Tissue:
                 p.WORLD_FRAME,
                 physicsClientId=c,
             )
+
+
+def _resample_polyline(path: FloatArray, count: int) -> FloatArray:
+    """``count`` points evenly spaced by arc length along ``path`` [m]."""
+    d = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    s = np.concatenate([[0.0], np.cumsum(d)])
+    if s[-1] <= 0.0:
+        return np.repeat(path[:1], count, axis=0)
+    at = np.linspace(0.0, s[-1], count)
+    out: FloatArray = np.stack([np.interp(at, s, path[:, k]) for k in range(3)], axis=1)
+    return out
 
 
 def _quat_from_matrix(r: FloatArray) -> tuple[float, float, float, float]:

@@ -1,0 +1,139 @@
+"""The tissue's puncture model: a needle driven through the pad makes the channel along its
+path and drags the thread into it; pulling it through costs the channel's friction (4.5),
+not a collision with the pad."""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pytest
+
+from backends.pybullet.suture import Suture, SutureParams, configure_physics, straight_path
+from backends.pybullet.tissue import Tissue
+from backends.pybullet.tools import Stitcher
+
+DOWN = (1.0, 0.0, 0.0, 0.0)  # rotation by pi about x: the tip's z points down
+JAW = np.array([-4e-3, 0.0, -3e-3])  # jaw 0 from the tip, world frame, with DOWN
+
+
+def _segment_distance(points: np.ndarray, line: np.ndarray) -> np.ndarray:
+    out = []
+    for x in points:
+        best = np.inf
+        for a, b in itertools.pairwise(line):
+            u = b - a
+            t = min(max(float((x - a) @ u) / float(u @ u), 0.0), 1.0)
+            best = min(best, float(np.linalg.norm(a + t * u - x)))
+        out.append(best)
+    return np.array(out)
+
+
+def _jaw_path(depth: float) -> list[np.ndarray]:
+    """Where jaw 0 (the needle's swaged end) goes, one point per millisecond: down onto the
+    entry point (0, -4, 0) mm, along a sin-shaped arc ``depth`` deep to the exit (0, 4, 0)
+    mm, then 25 mm straight up, all at 10 mm/s."""
+    speed, dt = 0.01, 1e-3
+    pts: list[np.ndarray] = []
+
+    def line(a: np.ndarray, b: np.ndarray) -> None:
+        n = max(1, round(float(np.linalg.norm(b - a)) / (speed * dt)))
+        pts.extend(a + (b - a) * k / n for k in range(1, n + 1))
+
+    entry, exit_ = np.array([0.0, -4e-3, 0.0]), np.array([0.0, 4e-3, 0.0])
+    line(entry + np.array([0.0, 0.0, 8e-3]), entry)
+    arc_n = round(0.010 / (speed * dt))
+    for k in range(1, arc_n + 1):
+        s = k / arc_n
+        pts.append(entry + s * (exit_ - entry) - [0, 0, depth * math.sin(math.pi * s)])
+    line(exit_, exit_ + np.array([0.0, 0.0, 0.025]))
+    return pts
+
+
+@pytest.fixture(scope="module")
+def stitch() -> dict[str, object]:
+    """Drive a stitcher so that its needle bites through the pad, and record what happens."""
+    import pybullet as p
+
+    c = p.connect(p.DIRECT)
+    try:
+        configure_physics(c)
+        tissue = Tissue.create(
+            c, (0.0, 0.0, 0.0), (0.0, -4e-3, 0.0), (0.0, 4e-3, 0.0), size=(0.08, 0.08, 0.01)
+        )
+        path = _jaw_path(2e-3)
+        start_jaw = path[0] - [0, 0, 1e-3]
+        sut = Suture.create(
+            c,
+            straight_path(tuple(start_jaw - [0.3, 0, 0]), (1.0, 0.0, 0.0), 0.3),
+            SutureParams(),
+        )
+        tool = Stitcher.create(
+            c, "s", tuple(start_jaw - JAW), DOWN, needle_body=sut.needle_body, place_needle=False
+        )
+        tissue.track(sut)
+        before_threaded = tissue.suture
+        forces, inside, heights = [], [], []
+        for k, jaw in enumerate(path):
+            tool.set_pose(tuple(jaw - JAW), DOWN)
+            tool.step()
+            sut.pre_step()
+            tissue.pre_step()
+            p.stepSimulation(physicsClientId=c)
+            forces.append(float(np.linalg.norm(p.getConstraintState(tool.drive, c)[:3])))
+            inside.append(len(tissue.inside))
+            heights.append(float(sut.centerline()[-1][2]))
+            if k == 1300:  # half way through the bite
+                mid_channel = tissue.channel.copy()
+        return {
+            "tissue": tissue,
+            "before_threaded": before_threaded,
+            "forces": np.array(forces),
+            "inside": np.array(inside),
+            "line": sut.centerline(),
+            "mid_channel": mid_channel,
+            "stretch": sut.stretch(),
+            "n_path": len(path),
+        }
+    finally:
+        p.disconnect(physicsClientId=c)
+
+
+def test_needle_punctures_at_the_entry_and_the_channel_is_its_path(stitch) -> None:  # type: ignore[no-untyped-def]
+    tissue = stitch["tissue"]
+    assert stitch["before_threaded"] is None  # nothing captured before the puncture
+    assert tissue.punctured and tissue.exited
+    # The channel starts and ends where the swaged end crossed the surface, on it.
+    assert np.allclose(tissue.entry, [0.0, -4e-3, 0.0], atol=0.3e-3)
+    assert np.allclose(tissue.exit, [0.0, 4e-3, 0.0], atol=0.3e-3)
+    channel = tissue.channel
+    assert abs(channel[0][2]) < 1e-9 and abs(channel[-1][2]) < 1e-9
+    # ... and follows the bite, 2 mm deep at mid-span (hand-built arc of _jaw_path).
+    assert channel[:, 2].min() == pytest.approx(-2e-3, abs=0.2e-3)
+    # Half way through the bite the channel grew only to where the needle was, mid-span.
+    assert abs(stitch["mid_channel"][-1][1]) < 1e-3
+    assert stitch["mid_channel"][-1][2] == pytest.approx(-2e-3, abs=0.3e-3)
+
+
+def test_thread_is_dragged_through_the_channel_and_held_by_it(stitch) -> None:  # type: ignore[no-untyped-def]
+    tissue = stitch["tissue"]
+    line = stitch["line"]
+    # The thread now runs through the whole channel (its 1.8 mm thick capsules within
+    # 1 mm of every channel point) and out of the exit up to the needle.
+    assert _segment_distance(tissue.channel, line).max() < 1e-3
+    assert line[-1][2] > 0.02
+    assert stitch["inside"][-500:].min() >= 1
+    assert stitch["stretch"] < 0.03
+
+
+def test_pulling_through_costs_the_channel_friction_not_a_collision(stitch) -> None:  # type: ignore[no-untyped-def]
+    """The drive force during the bite and the pull stays near the channel's F_s = 0.3 N
+    (4.5) plus the viscous F_v v = 0.02 N: the pad does not block the needle or the tool."""
+    forces = stitch["forces"]
+    bite = forces[800:1800]  # the needle inside the tissue
+    pull = forces[-1500:]  # the thread sliding through the channel
+    assert bite.max() < 1.0
+    assert pull.max() < 1.0
+    # The friction is felt while the thread slides: the mean pull is near F_s + F_v v.
+    assert np.mean(pull[-800:]) == pytest.approx(0.32, abs=0.15)
