@@ -10,7 +10,12 @@
 3. Solves the same per-tick QP (the skill's own P, q, A, l, u of that tick) with a
    parametrised cvxpy problem compiled once, and compares.
 
-Prints median and p99 [us]. Usage: ``python benchmarks/tick_overhead.py``.
+Prints median and p99 [us]. Usage (pinned to one core on a shared machine):
+
+    taskset -c 1 python benchmarks/tick_overhead.py [--repeats 3] [--profile DIR]
+
+``--profile DIR`` also writes a pyinstrument profile of one replay pass with the trace
+on (``DIR/tick_overhead.txt``).
 """
 
 from __future__ import annotations
@@ -178,9 +183,33 @@ def _cvxpy_twin() -> Any:
     return solve
 
 
+def _profile(trace: Path, out: Path, profile_dir: Path) -> None:
+    """A pyinstrument profile of one replay pass with the trace on."""
+    from pyinstrument import Profiler
+
+    profiler = Profiler(interval=0.0002)
+    profiler.start()
+    _replay(trace, out)
+    profiler.stop()
+    profile_dir.mkdir(parents=True, exist_ok=True)
+    text = profiler.output_text(unicode=False, color=False)
+    (profile_dir / "tick_overhead.txt").write_text(text)
+
+
 def main() -> None:
     """Record, replay twice, compare with cvxpy; print the figures."""
+    import argparse
+    import os
+
     from suture_engine.runtime.run import run_procedure
+
+    global REPEATS
+    ap = argparse.ArgumentParser(description="engine tick cost on the replay backend")
+    ap.add_argument("--repeats", type=int, default=REPEATS, help="interleaved pass pairs")
+    ap.add_argument("--profile", type=Path, default=None, help="write a pyinstrument profile")
+    args = ap.parse_args()
+    REPEATS = max(1, args.repeats)
+    load0 = os.getloadavg()[0]
 
     with tempfile.TemporaryDirectory() as tmp:
         rec = run_procedure(PROCEDURE, backend="pybullet", out=Path(tmp) / "rec")
@@ -196,6 +225,8 @@ def main() -> None:
         engine, engine_cpu, skill_cpu = min(runs_en, key=lambda r: _stats(r[1])[0])
         spread = [_stats(r[1])[0] for r in runs_tr], [_stats(r[1])[0] for r in runs_en]
         _replay(trace, Path(tmp) / "stages.mcap", stages=True)
+        if args.profile is not None:
+            _profile(trace, Path(tmp) / "profile.mcap", args.profile)
         try:
             _, _, cvx = _replay(trace, None, _cvxpy_twin())
         except ImportError:
@@ -203,6 +234,8 @@ def main() -> None:
     m_tr, p_tr = _stats(with_trace)
     m_en, p_en = _stats(engine)
     print(f"engine tick on the replay backend, move-constrained active ({len(engine)} ticks)")
+    load1 = os.getloadavg()[0]
+    print(f"load average {load0:.2f} at the start, {load1:.2f} at the end (2 CPUs)")
     print(f"best of {REPEATS} interleaved passes; CPU medians of every pass [us]:")
     print("  with trace: " + ", ".join(f"{v:.1f}" for v in spread[0]))
     print("  trace off : " + ", ".join(f"{v:.1f}" for v in spread[1]))
