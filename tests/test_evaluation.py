@@ -205,3 +205,18 @@ def test_evaluate_trace_reads_the_last_centerline_and_the_tension_channels(tmp_p
     ev = evaluate_trace(plain, SURFACE, NORMAL)
     assert isinstance(ev.knot, dict) and ev.knot["type"] == "unknot"
     assert ev.metrics["stitches"]["count"] == 0
+
+
+def test_with_the_wound_a_thread_hanging_below_the_plane_off_the_tissue_is_no_bite() -> None:
+    thread = _thread(SITES)
+    # the needle end hangs beyond the pad, below the surface plane, along the wound's
+    # direction 40 mm away: under the plane, but across no wound
+    dangle = np.array([[40, 0, 2], [42, 0, -8], [50, 0, -10], [58, 0, -8], [60, 0, 2]]) * MM
+    pts = np.vstack([thread, dangle])
+    assert len(find_bites(pts, SURFACE, NORMAL)) == 4
+    wound = ((-15 * MM, 0.0, 0.0), (15 * MM, 0.0, 0.0))
+    bites = find_bites(pts, SURFACE, NORMAL, wound=wound)
+    assert [b.entry[0] for b in bites] == pytest.approx([s[0] for s in SITES])
+    # a bite across the wound's line but beyond its end (+ 5 mm margin) does not count
+    short = ((-15 * MM, 0.0, 0.0), (-8 * MM, 0.0, 0.0))
+    assert len(find_bites(pts, SURFACE, NORMAL, wound=short)) == 1

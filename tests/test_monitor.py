@@ -58,10 +58,11 @@ def test_estimate_is_the_suture_modules_tip_wrench_with_a_tare() -> None:
     for k in range(10):
         q = np.array([*rng.uniform(-0.8, 0.8, 2), rng.uniform(-2, 2), rng.uniform(0.02, 0.18)])
         w = gravity_wrench(q, prm) + bias + rng.normal(scale=3.0, size=6)
-        out = est.estimate(_obs({"r": (q, w)}, k))
+        obs = _obs({"r": (q, w)}, k)
+        out = est.estimate(obs)
         oracle = tip_wrench(w, q, prm, offset=bias)
         assert out["r"] == pytest.approx(float(np.linalg.norm(oracle[:3])), rel=1e-9)
-        np.testing.assert_allclose(est.tip_moment["r"], oracle[3:], atol=1e-9)
+        np.testing.assert_allclose(est.tip_wrench("r", obs.robots["r"]), oracle, atol=1e-9)
 
 
 def test_estimate_low_pass_follows_a_step_with_the_cut_off_time_constant() -> None:
@@ -134,12 +135,17 @@ def test_on_pybullet_a_known_tip_force_is_read_within_5_percent() -> None:
     """A hold; 0.5 s in, PyBullet pushes the stitcher's tool tip with a known force."""
     force = np.array([0.9, -0.6, 1.1])  # world frame [N], |F| = 1.54 N (the invariant: 2 N)
     seen: dict[float, float] = {}
+    moments: list[float] = []
 
     def on_tick(it: Any) -> None:
         t = round(it._obs.t, 3)
         if t == 0.5:
             it.backend.apply_external_force("endobot_1", tuple(force), 1.0)
         seen[t] = it._tension["endobot_1"]
+        if t == 1.2:
+            moments.append(
+                np.linalg.norm(it.tension.tip_wrench("endobot_1", it._obs.robots["endobot_1"])[3:])
+            )
 
     interp, _ = _pybullet_run(PROCS / "steps.yaml", ["hold_time=1.8 s"], on_tick, 1.6)
     assert seen[0.45] < 0.02  # at rest, before the push
@@ -147,6 +153,9 @@ def test_on_pybullet_a_known_tip_force_is_read_within_5_percent() -> None:
     for t in (1.0, 1.2, 1.4):
         assert seen[t] == pytest.approx(expected, rel=0.05)
     assert interp.monitor.violations == []
+    # the load is a pure force at the tip: no moment left about it (7.9); the same force
+    # 0.1 m off the tip would leave ~0.15 N*m
+    assert moments[0] < 5e-3
 
 
 # ----------------------------------------------------------------- emergency lock

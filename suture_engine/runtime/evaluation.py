@@ -8,8 +8,10 @@ to skills.
 - **Bites.** The centerline dips under the tissue surface where a stitch
   passes through it. A bite is a maximal run of centerline points more than
   ``min_depth`` under the tissue plane (through ``tissue_point``, normal
-  ``tissue_normal``); its pierce points are where the centerline crosses the
-  plane just before and after the run (linear interpolation), and its depth
+  ``tissue_normal``) that crosses the wound line when one is given (a thread
+  hanging below the plane beyond the tissue is not a bite); its pierce
+  points are where the centerline crosses the plane just before and after
+  the run (linear interpolation), and its depth
   is the run's largest distance under the plane. Along the centerline (tail
   first) the first pierce point is the entry, the second the exit; when the
   declared points say the other way round fits better, they are swapped.
@@ -90,11 +92,33 @@ def _crossing(a: FloatArray, b: FloatArray, ha: float, hb: float) -> tuple[float
     return (float(p[0]), float(p[1]), float(p[2]))
 
 
+def _crosses_wound(
+    bite: Bite, wound: tuple[ArrayLike, ArrayLike], normal: FloatArray, margin: float
+) -> bool:
+    """Whether the bite's entry and exit lie on either side of the wound line, beside it."""
+    a, b = np.asarray(wound[0], dtype=float), np.asarray(wound[1], dtype=float)
+    along = b - a
+    length = float(np.linalg.norm(along))
+    if length < 1e-12:
+        return True
+    along = along / length
+    side = np.cross(normal, along)  # in the surface, across the wound
+    e, x = np.asarray(bite.entry) - a, np.asarray(bite.exit) - a
+    de, dx = float(e @ side), float(x @ side)
+    if de * dx > 0.0:
+        return False
+    s = de / (de - dx) if de != dx else 0.5
+    where = float((e + s * (x - e)) @ along)
+    return -margin <= where <= length + margin
+
+
 def find_bites(
     centerline: ArrayLike,
     tissue_point: ArrayLike,
     tissue_normal: ArrayLike,
     min_depth: float = MIN_DEPTH,
+    wound: tuple[ArrayLike, ArrayLike] | None = None,
+    wound_margin: float = 5e-3,
 ) -> list[Bite]:
     """The thread's passages through the tissue, in order along the centerline.
 
@@ -103,6 +127,11 @@ def find_bites(
         tissue_point: a point of the tissue surface [m].
         tissue_normal: the surface's outward normal (normalised here).
         min_depth: depth under the plane that counts as inside [m].
+        wound: the wound line's two ends [m]: when given, a bite counts only if it
+            crosses the wound (entry and exit on either side of it, within its length
+            plus ``wound_margin``); a thread hanging below the surface plane beyond the
+            tissue is not a bite.
+        wound_margin: how far beyond the wound's ends a crossing still counts [m].
 
     Returns:
         The complete bites (a run reaching an end of the centerline has no exit and
@@ -134,7 +163,9 @@ def find_bites(
             continue
         entry = _crossing(pts[i - 1], pts[i], float(h[i - 1]), float(h[i]))
         exit_ = _crossing(pts[j], pts[j + 1], float(h[j]), float(h[j + 1]))
-        bites.append(Bite(entry, exit_, float(-h[first : last + 1].min()), first, last))
+        bite = Bite(entry, exit_, float(-h[first : last + 1].min()), first, last)
+        if wound is None or _crosses_wound(bite, wound, n, wound_margin):
+            bites.append(bite)
     return bites
 
 
@@ -339,14 +370,26 @@ def evaluate(
     tissue_normal: ArrayLike,
     declared: Mapping[str, Sequence[float]] | None = None,
     contact_diameter: float | None = None,
+    wound: tuple[ArrayLike, ArrayLike] | None = None,
 ) -> TraceEvaluation:
-    """Knots and metrics from a final centerline and tension series (see the module)."""
+    """Knots and metrics from a final centerline and tension series (see the module).
+
+    Args:
+        centerline: N x 3 ground-truth centerline [m] (None: no thread).
+        estimated: estimated tension series [N].
+        true: the thread's true tension series [N] (None: no thread).
+        tissue_point: a point of the tissue surface [m].
+        tissue_normal: the surface's outward normal.
+        declared: the scene's named tissue points [m].
+        contact_diameter: the simulated thread's contact diameter [m].
+        wound: the wound line's ends [m]; bites must cross it (see :func:`find_bites`).
+    """
     metrics: dict[str, Any] = dict(tension_metrics(estimated, true))
     if centerline is None:
         metrics["stitches"] = None
         return TraceEvaluation(None, metrics)
     pts = _points(centerline)
-    bites = find_bites(pts, tissue_point, tissue_normal)
+    bites = find_bites(pts, tissue_point, tissue_normal, wound=wound)
     metrics["stitches"] = stitch_metrics(bites, declared)
     entries = knot_entries(pts, tissue_point, tissue_normal, contact_diameter, bites)
     knot: dict[str, Any] | list[dict[str, Any]] = entries[0] if len(entries) == 1 else entries
@@ -359,6 +402,7 @@ def evaluate_trace(
     tissue_normal: ArrayLike,
     declared: Mapping[str, Sequence[float]] | None = None,
     contact_diameter: float | None = None,
+    wound: tuple[ArrayLike, ArrayLike] | None = None,
 ) -> TraceEvaluation:
     """Evaluate a recorded trace: its last ``/ground_truth/suture`` centerline, its
     ``/ground_truth/tension`` and ``/tension/estimated`` series.
@@ -369,6 +413,7 @@ def evaluate_trace(
         tissue_normal: the surface's outward normal.
         declared: the scene's named tissue points [m].
         contact_diameter: the simulated thread's contact diameter [m].
+        wound: the wound line's ends [m] (see :func:`find_bites`).
 
     Raises:
         TraceError: the trace cannot be read.
@@ -396,4 +441,5 @@ def evaluate_trace(
         tissue_normal,
         declared,
         contact_diameter,
+        wound,
     )

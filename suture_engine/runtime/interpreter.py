@@ -530,6 +530,8 @@ class Interpreter:
         normal = scene.tissue_normal if scene is not None else (0.0, 0.0, 1.0)
         tissue = getattr(self.scene, "tissue", None)
         declared = dict(getattr(tissue, "points", None) or {})
+        cut = getattr(tissue, "wound", None)
+        wound = (cut.start, cut.end) if cut is not None else None
         diameter = truth.get("contact_diameter")
         if diameter is None:  # the PyBullet thread's capsule contact radius
             params = getattr(
@@ -542,7 +544,7 @@ class Interpreter:
         final = max(self._tension.values()) if self._tension else None
         estimated = [self.monitor.max_tension_N] + ([final] if final is not None else [])
         try:
-            return evaluate(centerline, estimated, true, point, normal, declared, diameter)
+            return evaluate(centerline, estimated, true, point, normal, declared, diameter, wound)
         except (SutureError, ValueError) as exc:  # e.g. a degenerate centerline
             from suture_engine.runtime.evaluation import TraceEvaluation, tension_metrics
 

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from suture_engine.runtime.observation import Measurement, Observation
+from suture_engine.runtime.observation import Measurement, Observation, RobotObservation
 
 if TYPE_CHECKING:
     from suture_engine.robot.params import EndoBotParams
@@ -150,27 +150,26 @@ class SafetyLimits:
 class BaseSensorTension:
     """Tension at each robot's tool tip from its base force/torque sensor (7.6)-(7.9).
 
-    Per robot and tick, as :mod:`suture_engine.suture.tension` derives it: the
-    gravity wrench ``F_g(q)`` of the robot's model (link masses and centres of
-    mass, gravity in the robot's base frame) is compensated (7.7), the motion
-    wrench ``F_m`` is neglected (low speed, 7.2.2), and the environment's load
-    ``-F_b = F_g + o - F_s`` is moved from the remote centre of motion O to the tool
-    tip ``p(q)`` (3.12) by the adjoint transform (7.8)-(7.9): force ``f`` and
-    moment ``m_tip = m_O - p x f``. A first-order low-pass (``cutoff_hz``) filters
-    both. The monitor knows no pulling direction, so its tension is ``|f|`` [N]
-    (the thread's tension when the thread is the only load at the tip); the
-    moment about the tip (about 0 for a pure tip force) is kept in
-    :attr:`tip_moment`.
+    As :mod:`suture_engine.suture.tension` derives it: the gravity wrench
+    ``F_g(q)`` of the robot's model (link masses and centres of mass, gravity in
+    the robot's base frame) is compensated (7.7), the motion wrench ``F_m`` is
+    neglected (low speed, 7.2.2), and the environment's load
+    ``-F_b = F_g + o - F_s`` is moved from the remote centre of motion O to the
+    tool tip ``p(q)`` (3.12) by the adjoint transform (7.8)-(7.9): force ``f`` and
+    moment ``m_tip = m_O - p x f`` (:meth:`tip_wrench`). The monitor knows no
+    pulling direction, so its tension is ``|f|`` [N] (the thread's tension when
+    the thread is the only load at the tip), low-pass filtered (first order,
+    ``cutoff_hz``).
 
     The tare ``o = F_s - F_g(q)``, taken at rest with the thread slack, absorbs
     the static frame above the sensor, unmodelled mounted tools' weight and the
-    sensor's bias. Note that the force part of ``F_g`` is ``-sum_i m_i g`` at every
-    pose: a robot's pose changes the gravity *moment* at the sensor, never its
-    force, so ``|f|`` is free of the robot's pose-dependent load once tared;
-    what the estimate still sees of the robot itself is its motion wrench.
-
-    The arithmetic is on plain floats (a few microseconds per robot and tick); it
-    equals :func:`suture_engine.suture.tension.tip_wrench` (tested).
+    sensor's bias. The force part of ``F_g`` is ``-sum_i m_i g`` at every pose: a
+    robot's pose changes the gravity *moment* at the sensor, never its force, and
+    the adjoint transform only rotates the force. So ``|f|`` is free of the
+    robot's pose-dependent load once tared and needs no trigonometry per tick;
+    what it still sees of the robot itself is its motion wrench. The
+    arithmetic is on plain floats; :meth:`tip_wrench` equals
+    :func:`suture_engine.suture.tension.tip_wrench` (tested).
 
     Args:
         params: per robot, the robot's model with gravity in its base frame;
@@ -196,9 +195,8 @@ class BaseSensorTension:
         self._alpha = dt / (tau + dt)
         self._model: dict[str, tuple[float, ...]] = {}
         self._offset: dict[str, tuple[float, ...]] = {}
-        self._state: dict[str, list[float]] = {}
-        self.tip_moment: dict[str, tuple[float, float, float]] = {}
-        """Filtered moment about each tool tip, base frame [N*m] (~0 for a thread)."""
+        self._state: dict[str, tuple[float, float, float]] = {}
+        self._const: dict[str, tuple[float, float, float]] = {}
 
     def _coefficients(self, name: str) -> tuple[float, ...]:
         """(g, M g, m1 c1, m2 c2 + m3 c3 + m4 c4, m4) of the robot's model (7.6)."""
@@ -241,39 +239,67 @@ class BaseSensorTension:
             load = self._load(name, robot.q.tolist(), robot.base_wrench.tolist())
             self._offset[name] = tuple(-v for v in load)
             self._state.pop(name, None)
+            self._const.pop(name, None)
 
     def estimate(self, obs: Observation) -> dict[str, float]:
-        """Estimated tension ``|f|`` [N] per robot (filtered); updates :attr:`tip_moment`."""
+        """Estimated tension ``|f|`` [N] per robot, low-pass filtered.
+
+        Per tick only the force of (7.7) is computed: the force part of ``F_g`` is
+        ``-M g`` at every pose and the adjoint transform (7.9) only rotates the force
+        (``|R^T f| = |f|``), so ``|f|`` needs neither the encoders nor trigonometry.
+        :meth:`tip_wrench` gives the whole wrench at the tip, moment included.
+        """
         out: dict[str, float] = {}
         alpha = self._alpha
         for name, robot in obs.robots.items():
-            q = robot.q.tolist()
-            load = self._load(name, q, robot.base_wrench.tolist())
-            o = self._offset.get(name)
-            if o is not None:
-                load = [load[i] + o[i] for i in range(6)]
-            fx, fy, fz, mx, my, mz = load
-            q1, q2, q4 = q[0], q[1], q[3]
-            c2q4 = math.cos(q2) * q4
-            px, py, pz = math.sin(q2) * q4, -math.sin(q1) * c2q4, math.cos(q1) * c2q4
-            # adjoint transform to the tip (7.9): m_tip = m_O - p x f
-            x = [
-                fx,
-                fy,
-                fz,
-                mx - (py * fz - pz * fy),
-                my - (pz * fx - px * fz),
-                mz - (px * fy - py * fx),
-            ]
+            const = self._const.get(name)
+            if const is None:
+                const = self._constants(name)
+            sx, sy, sz, _tx, _ty, _tz = robot.base_wrench.tolist()
+            fx, fy, fz = const[0] - sx, const[1] - sy, const[2] - sz  # -F_b (7.7)
             st = self._state.get(name)
-            if st is None:
-                st = self._state[name] = x
-            else:
-                for i in range(6):
-                    st[i] += alpha * (x[i] - st[i])
-            self.tip_moment[name] = (st[3], st[4], st[5])
-            out[name] = math.sqrt(st[0] * st[0] + st[1] * st[1] + st[2] * st[2])
+            if st is not None:
+                fx = st[0] + alpha * (fx - st[0])
+                fy = st[1] + alpha * (fy - st[1])
+                fz = st[2] + alpha * (fz - st[2])
+            self._state[name] = (fx, fy, fz)
+            out[name] = math.sqrt(fx * fx + fy * fy + fz * fz)
         return out
+
+    def _constants(self, name: str) -> tuple[float, float, float]:
+        """The tared force part of ``F_g`` [N]: ``-M g`` plus the tare's force."""
+        _gx, _gy, _gz, mgx, mgy, mgz, _a1, _a2, _m4 = self._coefficients(name)
+        o = self._offset.get(name, (0.0,) * 6)
+        const = (o[0] - mgx, o[1] - mgy, o[2] - mgz)
+        self._const[name] = const
+        return const
+
+    def tip_wrench(self, name: str, robot: RobotObservation) -> tuple[float, ...]:
+        """The environment's wrench on the tool at its tip, base frame, unfiltered (7.7-7.9).
+
+        Args:
+            name: the robot.
+            robot: its observation (encoders and base wrench).
+
+        Returns:
+            ``(fx, fy, fz [N], mx, my, mz [N*m])``: force and moment about the tool tip
+            ``p(q)`` (3.12); the moment is ~0 when a thread is the only load.
+        """
+        q = robot.q.tolist()
+        load = self._load(name, q, robot.base_wrench.tolist())
+        o = self._offset.get(name, (0.0,) * 6)
+        fx, fy, fz, mx, my, mz = (load[i] + o[i] for i in range(6))
+        q1, q2, q4 = q[0], q[1], q[3]
+        c2q4 = math.cos(q2) * q4
+        px, py, pz = math.sin(q2) * q4, -math.sin(q1) * c2q4, math.cos(q1) * c2q4
+        return (
+            fx,
+            fy,
+            fz,
+            mx - (py * fz - pz * fy),
+            my - (pz * fx - px * fz),
+            mz - (px * fy - py * fx),
+        )
 
 
 class Monitor:
@@ -283,6 +309,7 @@ class Monitor:
         self.violations: list[Violation] = []
         self.max_tension_N = 0.0
         self._stale: dict[str, int] = {}
+        self._stale_any = False
         self._active: set[tuple[str, str]] = set()
 
     def emergency(
@@ -313,6 +340,10 @@ class Monitor:
             The first emergency that must lock the robots now (also recorded), or
             None. A condition arising while ``locked`` is recorded, not returned.
         """
+        if not (stale or non_finite or self._active or self._stale_any):
+            bound = limits.lock_tension_N
+            if bound is None or not tension or max(tension.values()) < bound:
+                return None  # the common, quiet tick
         found: list[Violation] = []
         for name in obs.robots:
             signal = non_finite.get(name)
@@ -330,6 +361,7 @@ class Monitor:
             value = tension.get(name, 0.0)
             if bound is not None and value >= bound:
                 found.append(Violation(obs.t, obs.tick, state, name, "tension-limit", value, bound))
+        self._stale_any = any(self._stale.values())
         keys = {(v.invariant, v.robot) for v in found}
         arising = [v for v in found if (v.invariant, v.robot) not in self._active]
         self._active = keys
