@@ -23,6 +23,7 @@ __all__ = [
     "GENERIC_FAULTS",
     "FaultNotSupported",
     "fault_problems",
+    "fault_state_problems",
     "refusal",
     "supported_kinds",
 ]
@@ -124,6 +125,42 @@ def _scene_source(proc: Any) -> tuple[Any, tuple[Any, ...]] | None:
     return sdoc.source, ()
 
 
+def _located(proc: Any, items: list[tuple[int, str, str, str]]) -> list[Any]:
+    """Problems ``(index, field, code, message)`` at the scene's ``faults[index].field``."""
+    from suture_engine.validation.problem import Problem
+
+    if not items:
+        return []
+    located = _scene_source(proc)
+    out: list[Problem] = []
+    for i, name, code, message in items:
+        if located is None:
+            out.append(Problem(code, message, str(proc.file), 1, 1, "scene"))
+            continue
+        source, prefix = located
+        out.append(source.problem(code, message, (*prefix, "faults", i, name)))
+    return out
+
+
+def fault_state_problems(proc: Any, steps: Sequence[str]) -> list[Any]:
+    """Located problems for scene faults whose ``when`` names no step of the procedure.
+
+    Args:
+        proc: a loaded procedure.
+        steps: the compiled plan's step names (``mirrored-knot.tighten``; a fault's
+            ``when: tighten`` matches it).
+    """
+    from suture_engine.faults.schedule import state_matches
+
+    faults: Sequence[Fault] = getattr(getattr(proc, "scene", None), "faults", None) or []
+    items = [
+        (i, "when", "unknown-state", f"no step {f.when!r} ({', '.join(steps)})")
+        for i, f in enumerate(faults)
+        if f.when is not None and not any(state_matches(s, f.when) for s in steps)
+    ]
+    return _located(proc, items)
+
+
 def fault_problems(proc: Any, backend: str) -> list[Any]:
     """Located problems for the scene's faults that ``backend`` cannot simulate.
 
@@ -135,19 +172,11 @@ def fault_problems(proc: Any, backend: str) -> list[Any]:
         One :class:`~suture_engine.validation.problem.Problem` (code
         ``fault-not-supported``) per refused fault, at its ``kind`` in the scene.
     """
-    from suture_engine.validation.problem import Problem
-
     scene = getattr(proc, "scene", None)
     faults: Sequence[Fault] = getattr(scene, "faults", None) or []
-    refused = [(i, r) for i, f in enumerate(faults) if (r := refusal(f, backend)) is not None]
-    if not refused:
-        return []
-    located = _scene_source(proc)
-    out: list[Problem] = []
-    for i, reason in refused:
-        if located is None:
-            out.append(Problem("fault-not-supported", reason, str(proc.file), 1, 1, "scene"))
-            continue
-        source, prefix = located
-        out.append(source.problem("fault-not-supported", reason, (*prefix, "faults", i, "kind")))
-    return out
+    items = [
+        (i, "kind", "fault-not-supported", reason)
+        for i, f in enumerate(faults)
+        if (reason := refusal(f, backend)) is not None
+    ]
+    return _located(proc, items)

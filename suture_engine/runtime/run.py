@@ -392,17 +392,18 @@ def _run_faults(proc: Any, plan: Any, backend: str, specs: Sequence[str]) -> lis
     if not scene_faults and not specs:
         return []
     from suture_engine.faults.schedule import state_matches
-    from suture_engine.faults.support import FaultNotSupported, fault_problems, refusal
+    from suture_engine.faults.support import (
+        FaultNotSupported,
+        fault_problems,
+        fault_state_problems,
+        refusal,
+    )
     from suture_engine.faults.syntax import FaultValueError, parse_fault
 
-    problems = [p.format() for p in fault_problems(proc, backend)]
     steps = list(plan.steps)
-    for i, f in enumerate(scene_faults):
-        if f.when is not None and not any(state_matches(s, f.when) for s in steps):
-            where = f"{proc.file}: scene faults[{i}]"
-            problems.append(f"{where}: unknown-state: no step {f.when!r} ({', '.join(steps)})")
+    problems = fault_problems(proc, backend) + fault_state_problems(proc, steps)
     if problems:
-        raise ProcedureLoadError(problems)
+        raise ProcedureLoadError([p.format() for p in problems])
     robots = list(proc.scene.robots) if proc.scene is not None else []
     cli: list[Any] = []
     for spec in specs:
