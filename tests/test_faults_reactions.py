@@ -219,3 +219,15 @@ def test_cli_runs_with_faults_and_exits_by_outcome(tmp_path: Path) -> None:
     assert [r.kind for r in read_faults(out / "trace.mcap")] == ["noise", "delay"]
     bad = CliRunner().invoke(app, [*args, "--fault", "blow-up@0.2 s"])
     assert bad.exit_code == 1 and "lock" in bad.output
+
+
+def test_a_faulted_run_replays_and_checks(tmp_path: Path) -> None:
+    """The trace holds the faulted measurements: a replay reproduces the engine's commands
+    and events (the fault records themselves are not compared: nothing re-injects them)."""
+    from suture_engine.runtime.run import replay_trace
+
+    result = _run(tmp_path, "ft.noise=0.05 N", "endobot_1:pitch.joint-lock@state retreat")
+    assert read_faults(result.trace)
+    replay = replay_trace(result.trace, check=True)
+    assert replay.ok, replay.diff
+    assert replay.summary.outcome == result.summary.outcome == "aborted"

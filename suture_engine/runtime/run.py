@@ -440,8 +440,16 @@ def _jsonable(value: Any) -> Any:
 
 def _until(messages: Iterator[Any], last_ns: int) -> Iterator[Any]:
     for msg in messages:
-        if msg.log_time_ns <= last_ns:
+        if msg.log_time_ns <= last_ns and not _fault_record(msg):
             yield msg
+
+
+def _fault_record(msg: Any) -> bool:
+    """A record of an injected fault (``/events`` ``fault:<kind>``, when the trace has no
+    ``/faults`` channel): the replay does not re-inject faults, so it is not compared."""
+    if msg.topic != "/events" or not isinstance(msg.data, dict):
+        return False
+    return str(msg.data.get("name", "")).startswith("fault:")
 
 
 def replay_trace(
