@@ -19,6 +19,9 @@ on ``pybullet-surgical`` (when that backend has the ``inject_grasp_slip`` and
 Usage:
     nice python benchmarks/fault_campaign.py [--runs 200] [--workers 2] [--seed 0]
         [--surgical 0] [--out DIR] [--keep-traces] [--csv FILE]
+
+Rows are appended to the CSV as runs end: an interrupted campaign resumes where it
+stopped (same ``--runs``, ``--seed`` and ``--surgical``, the CSV of the first start).
 """
 
 from __future__ import annotations
@@ -26,11 +29,14 @@ from __future__ import annotations
 import argparse
 import csv
 import dataclasses
+import os
+import resource
 import tempfile
 import time
 from pathlib import Path
 
 from suture_engine.faults.campaign import (
+    CampaignJob,
     CampaignRow,
     Target,
     format_table,
@@ -87,35 +93,64 @@ def main() -> None:
     ap.add_argument("--surgical", type=int, default=0, help="runs per thread fault kind")
     ap.add_argument("--out", type=Path, default=None, help="run folders (default: a temp dir)")
     ap.add_argument("--keep-traces", action="store_true", help="keep every run's folder")
-    ap.add_argument("--csv", type=Path, default=None, help="write one row per run")
+    ap.add_argument(
+        "--csv",
+        type=Path,
+        default=None,
+        help="one row per run, appended as runs end; the runs already there are not run "
+        "again (default: OUT/campaign.csv)",
+    )
     args = ap.parse_args()
 
     out = args.out or Path(tempfile.mkdtemp(prefix="fault-campaign-"))
-    jobs = []
+    jobs: list[CampaignJob] = []
     for n, (target, share) in enumerate(targets(args.surgical)):
         count = args.runs if share == 0 else share
         batch = make_jobs([target], count, args.seed + 1000 * n, out / target.backend)
         jobs += [j._replace(number=len(jobs) + k) for k, j in enumerate(batch)]
-    print(f"{len(jobs)} runs, {args.workers} workers, output {out}")
+    csv_path = args.csv or out / "campaign.csv"
+    done_rows = read_rows(csv_path)
+    todo = [j for j in jobs if j.number not in done_rows]
+    print(
+        f"{len(jobs)} runs ({len(done_rows)} already in {csv_path}), {args.workers} workers, "
+        f"output {out}"
+    )
     start = time.perf_counter()
-    done = [0]
+    cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    fields = [f.name for f in dataclasses.fields(CampaignRow)]
+    new_file = not csv_path.is_file() or csv_path.stat().st_size == 0
+    with csv_path.open("a", newline="", encoding="utf-8") as fh:
+        writer = csv.DictWriter(fh, fieldnames=fields)
+        if new_file:
+            writer.writeheader()
 
-    def progress(row: CampaignRow) -> None:
-        done[0] += 1
-        if row.outcome == "crash" or done[0] % 20 == 0:
-            print(
-                f"  [{done[0]}/{len(jobs)}] run {row.index} {row.kind}: {row.outcome} {row.error}"
-            )
+        def progress(row: CampaignRow) -> None:
+            writer.writerow(dataclasses.asdict(row))
+            fh.flush()
+            done_rows[row.index] = row
+            if row.outcome == "crash" or len(done_rows) % 20 == 0:
+                print(
+                    f"  [{len(done_rows)}/{len(jobs)}] run {row.index} {row.kind}: "
+                    f"{row.outcome} {row.error}",
+                    flush=True,
+                )
 
-    rows = run_campaign(jobs, workers=args.workers, keep_traces=args.keep_traces, on_row=progress)
+        run_campaign(todo, workers=args.workers, keep_traces=args.keep_traces, on_row=progress)
     elapsed = time.perf_counter() - start
+    cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)
+    rows = [done_rows[j.number] for j in jobs if j.number in done_rows]
     print()
     print(format_table(rows))
     crashes = [r for r in rows if r.outcome == "crash"]
     violations = sum(r.true_violations > 0 for r in rows)
     with_truth = sum(r.max_true_tension_N == r.max_true_tension_N for r in rows)
     print()
-    print(f"runs: {len(rows)}  crashes: {len(crashes)}  wall time: {elapsed / 60:.1f} min")
+    print(
+        f"runs: {len(rows)}  crashes: {len(crashes)}  this session: {len(todo)} runs, "
+        f"wall {elapsed / 60:.1f} min, CPU of the runs {cpu / 60:.1f} min "
+        f"(load average {os.getloadavg()[0]:.1f})"
+    )
     print(f"tension-limit violations (true tension, {with_truth} runs with a thread): {violations}")
     print(
         "runs whose estimated tension went above the limit: "
@@ -124,13 +159,28 @@ def main() -> None:
     print(f"runs whose trace records no fault onset: {sum(r.fault_records == 0 for r in rows)}")
     for r in crashes:
         print(f"  crash: run {r.index} --fault {r.fault!r} exit {r.exit_code}: {r.error}")
-    if args.csv is not None:
-        with args.csv.open("w", newline="", encoding="utf-8") as fh:
-            fields = [f.name for f in dataclasses.fields(CampaignRow)]
-            w = csv.DictWriter(fh, fieldnames=fields)
-            w.writeheader()
-            for r in rows:
-                w.writerow(dataclasses.asdict(r))
+
+
+def read_rows(path: Path) -> dict[int, CampaignRow]:
+    """The rows already in a campaign CSV (a resumed campaign skips them)."""
+    if not path.is_file():
+        return {}
+    types = {f.name: f.type for f in dataclasses.fields(CampaignRow)}
+    rows: dict[int, CampaignRow] = {}
+    with path.open(newline="", encoding="utf-8") as fh:
+        for rec in csv.DictReader(fh):
+            values: dict[str, object] = {}
+            for key, text in rec.items():
+                kind = str(types.get(key, "str"))
+                if kind == "int":
+                    values[key] = int(text)
+                elif kind == "float":
+                    values[key] = float(text)
+                else:
+                    values[key] = text
+            row = CampaignRow(**values)  # type: ignore[arg-type]
+            rows[row.index] = row
+    return rows
 
 
 if __name__ == "__main__":
