@@ -108,6 +108,7 @@ def main() -> None:
         count = args.runs if share == 0 else share
         batch = make_jobs([target], count, args.seed + 1000 * n, out / target.backend)
         jobs += [j._replace(number=len(jobs) + k) for k, j in enumerate(batch)]
+    out.mkdir(parents=True, exist_ok=True)
     csv_path = args.csv or out / "campaign.csv"
     done_rows = read_rows(csv_path)
     todo = [j for j in jobs if j.number not in done_rows]
