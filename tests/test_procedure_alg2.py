@@ -44,7 +44,13 @@ def test_slide_to_tip_target_lies_beside_and_beyond_the_grasper_tip(mirror: bool
     )
     grab = proc.states["grab-tail"].params
     points = proc.scene.tissue.points
-    tip2 = np.asarray(points[grab.target], dtype=float) + np.asarray(grab.offset)
+    lift = proc.states["lift-tail"].params
+    assert lift.relative_to == "grasper"
+    tip2 = (
+        np.asarray(points[grab.target], dtype=float)
+        + np.asarray(grab.offset)
+        + np.asarray(lift.target)
+    )
     o1, _ = _base(proc, "stitcher")
     o2, _ = _base(proc, "grasper")
     slide = proc.states["slide-to-tip"].params
@@ -125,10 +131,12 @@ def test_the_second_throw_of_a_square_knot_makes_no_second_stitch(algorithm: int
     proc: Any = load_procedure(
         ROOT / "procedures" / "square-knot.yaml", params={"algorithm": algorithm}
     )
-    first = proc.states["simple-knot"].use.states["stitch"].use
-    second = proc.states["mirrored-knot"].use.states["stitch"].use
-    assert "pass-needle" in _skills(first)
-    assert _skills(second) == []
+    first = proc.states["simple-knot"].use.states["stitch"]
+    second = proc.states["mirrored-knot"].use.states["stitch"]
+    assert "pass-needle" in _skills(first.use)
+    # the second throw skips its stitch (when: false), or uses one that does nothing
+    assert not second.enabled or _skills(second.use) == []
+    assert first.enabled
 
 
 NOT_REPEATABLE = {"wrap", "rotate-about", "pass-jaws", "pass-needle"}
@@ -156,3 +164,45 @@ def test_no_retry_re_runs_a_step_that_cannot_be_repeated(algorithm: int) -> None
             checked += 1
             assert policy.retry == 0, f"{name}: a retry would re-run {before} ({skills})"
     assert checked >= 2
+
+
+HOOK_REACH = 6e-3
+"""How far the extended hook passes the grasper's jaw centre along the stem [m]."""
+
+
+@pytest.mark.parametrize("tail_mm", [20, 30, 50])
+def test_grab_tail_closes_near_the_tail_end_then_lifts_it_clear_of_the_tissue(
+    tail_mm: int,
+) -> None:
+    proc: Any = load_procedure(
+        ROOT / "procedures" / "knot-algorithm-2.yaml",
+        params={"tail": f"{tail_mm} mm", "stitch": False},
+    )
+    tail = tail_mm * 1e-3
+    grab = proc.states["grab-tail"].params
+    points = proc.scene.tissue.points
+    entry = np.asarray(points[grab.target], dtype=float)
+    exit_ = np.asarray(points[proc.params["exit"]], dtype=float)
+    along = (exit_ - entry) / np.linalg.norm(exit_ - entry)
+    end = entry - tail * along  # the tail lies out of the entry, away from the exit
+    jaws = entry + np.asarray(grab.offset)
+    rel = jaws - end
+    lateral = rel - (rel @ along) * along
+    # on the tail, within one capsule (4-7.5 mm) of its end, on the tail's side of it ...
+    assert float(np.linalg.norm(lateral[:2])) < 1e-3
+    assert 0.0 < float(rel @ along) <= 5e-3
+    # ... above the tail's axis (0.9 mm up) by less than the jaws' 3 mm reach, and high
+    # enough that the tilted 5 mm shaft clears the surface (measured window 2.5-3.9 mm)
+    assert 2.5e-3 <= jaws[2] <= 3.9e-3
+    # the lift keeps the grasped length to the entry point (no pull through the stitch)
+    lift = proc.states["lift-tail"].params
+    lifted = jaws + np.asarray(lift.target)
+    assert float(np.linalg.norm(lifted - entry)) <= float(np.linalg.norm(jaws - entry))
+    # and the extended hook, 6 mm beyond the jaws along the stem, stays above the tissue
+    o2, _ = _base(proc, "grasper")
+    up = (o2 - lifted) / np.linalg.norm(o2 - lifted)
+    assert (lifted - HOOK_REACH * up)[2] > 3e-3
+    order = list(proc.states)
+    assert order.index("lift-tail") < order.index("extend-hook")
+    assert proc.states["grab-tail"].on["done"] == "lift-tail"
+    assert proc.states["lift-tail"].on["done"] == "extend-hook"
