@@ -31,7 +31,29 @@ from skills.base import Skill, SkillParams
 from suture_engine.language.refs import RoleRef
 from suture_engine.language.units import Angle, Length, Speed
 
-__all__ = ["Wrap", "WrapParams"]
+__all__ = ["Wrap", "WrapParams", "segment_gap"]
+
+
+def segment_gap(p1: Any, q1: Any, p2: Any, q2: Any) -> float:
+    """Smallest distance [m] between the segments p1-q1 and p2-q2 [m].
+
+    The closest points p1 + s d1 and p2 + t d2 minimise |r + s d1 - t d2|^2
+    (r = p1 - p2) over s, t in [0, 1]: the unconstrained stationary point clamped
+    to the square, then each parameter re-optimised with the other fixed.
+    """
+    import numpy as np
+
+    p1, q1, p2, q2 = (np.asarray(v, dtype=float) for v in (p1, q1, p2, q2))
+    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
+    a, e, f = float(d1 @ d1), float(d2 @ d2), float(d2 @ r)
+    c, b = float(d1 @ r), float(d1 @ d2)
+    denom = a * e - b * b
+    s = min(max((b * f - c * e) / denom, 0.0), 1.0) if denom > 1e-18 * a * e else 0.0
+    t = (b * s + f) / e
+    if t < 0.0 or t > 1.0:
+        t = min(max(t, 0.0), 1.0)
+        s = min(max((b * t - c) / a, 0.0), 1.0)
+    return float(np.linalg.norm(p1 + s * d1 - p2 - t * d2))
 
 
 class WrapParams(SkillParams):
@@ -53,6 +75,12 @@ class WrapParams(SkillParams):
     (360 deg) loops the suture around the shaft by the tool's motion alone."""
     speed: Speed = Field(default=0.01, gt=0.0, le=0.2)
     """Tool-tip speed [m/s]."""
+    shaft_clearance: Length | None = Field(default=None, gt=0.0, le=0.05)
+    """When set, the smallest allowed distance between the two tools' shaft axes
+    (each the segment from the RCM point to the tool tip) along the planned path
+    [m]; two 5 mm shafts touch at 5 mm. The skill then fails before moving when the
+    path would cross the other shaft (a full turn about a straight shaft does:
+    algorithm 3 needs the bent arm, 4.4.3). ``None``: not checked."""
     tolerance: Length | None = Field(default=None, gt=0.0, le=5e-3)
     """Tip position tolerance at the goal [m]; ``None`` uses the skill's
     :attr:`TOLERANCE`. A looser one suits a backend whose position control leaves
@@ -68,7 +96,8 @@ class Wrap(Skill):
     :attr:`APPROACH_SPEED`), then at peak tip speed ``speed`` the arc of
     pi (2 turns - 1) [rad] about the other shaft. The roll is kept. Fails when a
     path leaves the joint limits, when the carrying robot is the one wrapped
-    around or the shafts are aligned, or when the tip is not within
+    around or the shafts are aligned, when (with ``shaft_clearance``) the path
+    brings the two shafts closer than that, or when the tip is not within
     :attr:`TOLERANCE` [m] of the arc's end :attr:`SETTLE_S` [s] after the path.
     """
 
@@ -103,6 +132,9 @@ class Wrap(Skill):
         self.sign = 1.0
         self._e1: Any = None
         self._e2: Any = None
+        self.shaft_gap = float("inf")
+        """Smallest distance between the two shaft axes on the planned paths [m]
+        (computed when ``shaft_clearance`` is set)."""
 
     def loop_point(self, s: float) -> Any:
         """Tip position on the loop [m] at fraction ``s`` of it."""
@@ -196,6 +228,23 @@ class Wrap(Skill):
         box = joint_box(ctx, self._robot)
         for path in self._paths:
             self._failure = self._failure or path.first_violation(box)
+        if p.shaft_clearance is not None:
+            self.shaft_gap = self._shaft_gap(own, o2, t2)
+        if p.shaft_clearance is not None and self.shaft_gap < p.shaft_clearance:
+            self._failure = self._failure or (
+                f"the shafts come {self.shaft_gap * 1e3:.2f} mm apart on the loop (needs "
+                f"{p.shaft_clearance * 1e3:.2f} mm): the tool would cross the other shaft"
+            )
+
+    def _shaft_gap(self, own: Any, o2: Any, t2: Any) -> float:
+        """Smallest distance [m] between the two shaft axes along the planned paths."""
+        from skills.tool_path import tip_world
+
+        gap = float("inf")
+        for path in self._paths:
+            for q in path.table:
+                gap = min(gap, segment_gap(own, tip_world(q, self._base), o2, t2))
+        return gap
 
     def step(self, ctx: Any, obs: Any) -> Any:
         """Track the approach then the arc; success at the arc's end.

@@ -1,0 +1,161 @@
+"""Ligation algorithm 3's procedure (thesis 4.4.3): the loop about the grasper, planned.
+
+The loop is a full turn of the needle holder about the grasper. About a straight
+stem the holder's shaft must cross the grasper's; ``wrap`` with
+``shaft_clearance`` refuses that before moving. The shaft distances are checked
+against dense sampling and scipy's bounded minimisation, not the skill's own
+closed form.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from scipy.optimize import minimize
+from scipy.spatial.transform import Rotation
+
+from skills.tool_path import ik_world, tip_world
+from skills.wrap import Wrap, WrapParams, segment_gap
+from suture_engine.language.loader import load_procedure
+from suture_engine.runtime.context import SkillContext
+from suture_engine.runtime.observation import (
+    Observation,
+    RobotObservation,
+    SceneGeometry,
+    SkillStatus,
+    ToolState,
+)
+
+ROOT = Path(__file__).resolve().parent.parent
+PROC = ROOT / "procedures" / "knot-algorithm-3.yaml"
+
+
+def sampled_gap(p1: Any, q1: Any, p2: Any, q2: Any, n: int = 801) -> float:
+    s = np.linspace(0.0, 1.0, n)[:, None]
+    a = p1 + s * (q1 - p1)
+    b = p2 + s * (q2 - p2)
+    return float(np.min(np.linalg.norm(a[:, None, :] - b[None, :, :], axis=2)))
+
+
+def test_segment_gap_matches_a_bounded_minimisation() -> None:
+    rng = np.random.default_rng(5)
+    cases = [tuple(rng.normal(size=(4, 3))) for _ in range(12)]
+    # parallel, collinear-overlapping and crossing segments
+    cases.append((np.zeros(3), np.array((1.0, 0, 0)), np.array((0.5, 1, 0)), np.array((2, 1, 0))))
+    cases.append((np.zeros(3), np.array((1.0, 0, 0)), np.array((0.5, 0, 0)), np.array((2, 0, 0))))
+    cases.append(
+        (
+            np.array((-1.0, 0, 0)),
+            np.array((1.0, 0, 0)),
+            np.array((0, -1, 0.3)),
+            np.array((0, 1, 0.3)),
+        )
+    )
+    for p1, q1, p2, q2 in cases:
+        best = min(
+            minimize(
+                lambda v, p1=p1, q1=q1, p2=p2, q2=q2: float(
+                    np.linalg.norm(p1 + v[0] * (q1 - p1) - p2 - v[1] * (q2 - p2))
+                ),
+                x0,
+                bounds=[(0.0, 1.0), (0.0, 1.0)],
+                method="L-BFGS-B",
+            ).fun
+            for x0 in ((0.5, 0.5), (0.0, 1.0), (1.0, 0.0))
+        )
+        got = segment_gap(p1, q1, p2, q2)
+        assert got == pytest.approx(best, abs=1e-6)
+        assert got == pytest.approx(sampled_gap(p1, q1, p2, q2, n=201), abs=3e-2)
+
+
+def test_states_follow_the_thesis_steps() -> None:
+    proc: Any = load_procedure(PROC)
+    order = []
+    state = proc.initial
+    while proc.states[state].on:
+        order.append(state)
+        state = proc.states[state].on["done"]
+    assert order == ["stitch", "pick-strand", "present", "loop", "grab-tail", "tighten"]
+    assert proc.states["tied"].outcome == "succeeded"
+
+
+def plan_loop(sweep: float | None = None, mirror: bool = False) -> Wrap:
+    """The ``loop`` state's wrap, planned with both tools where the earlier states leave them."""
+    proc: Any = load_procedure(PROC, params={"mirror": mirror, "pick_strand": True})
+    scene = proc.scene
+    points = scene.tissue.points
+    bases = {}
+    for name, spec in scene.robots.items():
+        rot = Rotation.from_euler("xyz", spec.base.rpy).as_matrix()
+        bases[name] = (tuple(spec.base.position), tuple(rot.reshape(-1)))
+    pick = proc.states["pick-strand"].params
+    present = proc.states["present"].params
+    holder_tip = np.asarray(points[pick.target]) + np.asarray(pick.offset)
+    grasper_tip = np.asarray(points[present.target]) + np.asarray(present.offset)
+    qs = {
+        "endobot_1": ik_world(holder_tip, 0.0, bases["endobot_1"]),
+        "endobot_2": ik_world(grasper_tip, 0.0, bases["endobot_2"]),
+    }
+    tools = {"endobot_1": ToolState("grasper", True), "endobot_2": ToolState("bent-tip-grasper")}
+    obs = Observation(
+        0,
+        0.0,
+        {n: RobotObservation(q, np.zeros(4), np.zeros(6), tools[n]) for n, q in qs.items()},
+        SceneGeometry(),
+    )
+    ctx = SkillContext("loop", dict(proc.roles), 1e-3, obs, scene, {}, bases)
+    params = proc.states["loop"].params.model_dump()
+    if sweep is not None:
+        params["sweep"] = sweep
+    skill = Wrap(WrapParams.model_validate(params))
+    skill.start(ctx)
+    skill.bases = bases  # type: ignore[attr-defined]
+    skill.qs = qs  # type: ignore[attr-defined]
+    return skill
+
+
+def independent_gap(skill: Any) -> float:
+    """Smallest shaft-to-shaft distance along the planned paths, by dense sampling."""
+    o1 = np.asarray(skill.bases["endobot_1"][0])
+    o2 = np.asarray(skill.bases["endobot_2"][0])
+    t2 = tip_world(skill.qs["endobot_2"], skill.bases["endobot_2"])
+    return min(
+        sampled_gap(o1, tip_world(q, skill.bases["endobot_1"]), o2, t2, n=151)
+        for path in skill._paths
+        for q in path.table[::40]
+    )
+
+
+@pytest.mark.parametrize("mirror", [False, True])
+def test_a_full_turn_about_the_straight_stem_is_refused_before_moving(mirror: bool) -> None:
+    skill = plan_loop(mirror=mirror)
+    assert skill.sweep == pytest.approx(2 * math.pi)
+    assert skill.shaft_gap < 1e-3
+    assert independent_gap(skill) < 3e-3  # sampled: within its 1 mm spacing
+    obs_q = skill.qs["endobot_1"]  # type: ignore[attr-defined]
+    tools = {"endobot_1": ToolState("grasper", True), "endobot_2": ToolState("bent-tip-grasper")}
+    obs = Observation(
+        0,
+        0.0,
+        {
+            n: RobotObservation(q, np.zeros(4), np.zeros(6), tools[n])
+            for n, q in skill.qs.items()  # type: ignore[attr-defined]
+        },
+        SceneGeometry(),
+    )
+    result = skill.step(None, obs)
+    assert result.status is SkillStatus.FAILURE
+    assert "would cross the other shaft" in result.message
+    assert np.allclose(result.command.robots["endobot_1"].q, obs_q)  # held, not moved
+
+
+def test_the_half_turn_keeps_the_shafts_apart() -> None:
+    # the half turn (algorithm 2's loop over the hook) stays on the holder's side
+    skill = plan_loop(sweep=math.pi)
+    assert skill.shaft_gap > 5e-3
+    assert independent_gap(skill) == pytest.approx(skill.shaft_gap, abs=1.5e-3)
+    assert skill._failure == ""
