@@ -80,7 +80,7 @@ def _instrument(interp: Any, skill: Any) -> None:
 
 
 def _replay(
-    trace: Path, out: Path | None, cvx: Any = None, stages: bool = False
+    trace: Path, out: Path | None, cvx: Any = None, stages: bool = False, fast: bool = True
 ) -> tuple[list[int], list[int], list[int]]:
     from backends.replay import ReplayBackend
     from suture_engine.runtime.interpreter import Interpreter
@@ -100,6 +100,7 @@ def _replay(
             robots=be.robots,
             backend="replay",
             params={},
+            fast=fast,
         )
     interp = Interpreter(
         plan,
@@ -217,12 +218,14 @@ def main() -> None:
         _replay(trace, None)  # warm-up: imports, first-call costs
         # The pair of passes is repeated (interleaved) and the pass with the lowest CPU
         # median kept: on a shared machine one pass can run at half speed throughout.
-        runs_tr, runs_en = [], []
+        runs_tr, runs_en, runs_gen = [], [], []
         for _ in range(REPEATS):
             runs_tr.append(_replay(trace, Path(tmp) / "replay.mcap"))
             runs_en.append((*_replay(trace, None)[:2], list(SKILL_NS)))
+            runs_gen.append(_replay(trace, Path(tmp) / "generic.mcap", fast=False))
         with_trace, with_trace_cpu, _ = min(runs_tr, key=lambda r: _stats(r[1])[0])
         engine, engine_cpu, skill_cpu = min(runs_en, key=lambda r: _stats(r[1])[0])
+        generic_cpu = min(runs_gen, key=lambda r: _stats(r[1])[0])[1]
         spread = [_stats(r[1])[0] for r in runs_tr], [_stats(r[1])[0] for r in runs_en]
         _replay(trace, Path(tmp) / "stages.mcap", stages=True)
         if args.profile is not None:
@@ -246,6 +249,9 @@ def main() -> None:
     for label, ns in (("with trace writing", with_trace_cpu), ("trace off", engine_cpu)):
         m, p = _stats(ns)
         print(f"  {label:19s}: median {m:7.1f} us   p99 {p:7.1f} us")
+    m, p = _stats(generic_cpu)
+    print(f"  trace, generic path: median {m:7.1f} us   p99 {p:7.1f} us (the recorder's fast")
+    print("                       path off: a dict per message through the json module)")
     m, p = _stats(skill_cpu)
     print(f"  of which skill.step: median {m:7.1f} us   p99 {p:7.1f} us (move-constrained + QP)")
     print("CPU time per stage, a separate instrumented pass with the trace on (sums of")

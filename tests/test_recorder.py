@@ -162,3 +162,48 @@ def test_a_run_records_the_same_trace_on_both_paths(
     generic = run_procedure(PROCS / "steps.yaml", backend="ideal", out=tmp_path / "generic")
     assert taken == []
     assert fast.trace.read_bytes() == generic.trace.read_bytes()
+
+
+def test_centerline_is_looked_up_on_its_ticks_only(tmp_path: Path) -> None:
+    from collections.abc import Iterator, Mapping
+
+    class CountingTruth(Mapping[str, Any]):
+        """A backend's lazy ground truth: counts how often the centerline is computed."""
+
+        def __init__(self) -> None:
+            self.computed = 0
+
+        def __getitem__(self, key: str) -> Any:
+            if key == "centerline":
+                self.computed += 1
+                return np.zeros((3, 3))
+            if key == "tension_N":
+                return 0.5
+            raise KeyError(key)
+
+        def __iter__(self) -> Iterator[str]:
+            return iter(("centerline", "tension_N"))
+
+        def __len__(self) -> int:
+            return 2
+
+    rec = TraceRecorder(
+        tmp_path / "t.mcap",
+        procedure="p",
+        seed=0,
+        control_rate_hz=1000.0,
+        robots=ROBOTS,
+        backend="test",
+        params={},
+        centerline_every=100,
+    )
+    truth = CountingTruth()
+    rng = np.random.default_rng(1)
+    for k in range(250):
+        obs = _observation(k, rng)
+        rec.tick(k * 1_000_000, obs, {}, {}, {"endobot_1": 0.1}, truth)
+    rec.close()
+    assert truth.computed == 3  # ticks 0, 100 and 200
+    topics = [m.topic for m in TraceReader(tmp_path / "t.mcap").messages()]
+    assert topics.count("/ground_truth/suture") == 3
+    assert topics.count("/ground_truth/tension") == 250
