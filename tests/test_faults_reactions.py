@@ -231,3 +231,23 @@ def test_a_faulted_run_replays_and_checks(tmp_path: Path) -> None:
     replay = replay_trace(result.trace, check=True)
     assert replay.ok, replay.diff
     assert replay.summary.outcome == result.summary.outcome == "aborted"
+
+
+@pytest.mark.parametrize(
+    ("spec", "reason"),
+    [("blow-up@0.3 s", "non-finite"), ("blow-up@0.3 s;mode=energy", "invariant:tension")],
+)
+def test_blow_ups_on_pybullet_lock_below_the_limit(tmp_path: Path, spec: str, reason: str) -> None:
+    result = _run(tmp_path, spec, backend="pybullet")
+    s = result.summary
+    assert (s.outcome, s.final_state) == ("failed", "lock") and s.sim_time_s < 0.5
+    assert reason in _reasons(result)[0]
+    assert s.max_tension_N < s.tension_limit_N
+
+
+@pytest.mark.slow
+def test_same_seed_same_faults_byte_identical_trace_on_pybullet(tmp_path: Path) -> None:
+    faults = ("ft.noise=0.05 N", "enc.dropout@rate 3/s for 2 ms", "endobot_1:yaw.joint-weak=0.5")
+    a = _run(tmp_path, *faults, seed=4, name="a", backend="pybullet")
+    b = _run(tmp_path, *faults, seed=4, name="b", backend="pybullet")
+    assert a.trace.read_bytes() == b.trace.read_bytes()
