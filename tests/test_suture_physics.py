@@ -286,9 +286,56 @@ def test_stitcher_passes_needle_to_other_jaw() -> None:
         assert st.needle_holder == 1 and not st.passing
         st.open_jaws()
         run(st.travel_time + 0.2)
-        assert needle_x() == pytest.approx(closed + st.open_width, abs=5e-4)
+        # The needle crossed the gap: it opens with jaw 1, mirrored from where it was.
+        assert needle_x() == pytest.approx(-closed + st.open_width, abs=5e-4)
     finally:
         scene.close()
+
+
+def test_needle_pass_carries_the_thread_across_the_jaw_gap() -> None:
+    """The hand-over sweeps the needle from jaw 0 to jaw 1 (Fig. 4.3), dragging the thread's
+    end across the gap (R1 of the knot work: the loop around the grasper tip needs it)."""
+    import pybullet as p
+
+    from backends.pybullet.suture import Suture, configure_physics, straight_path
+
+    c = p.connect(p.DIRECT)
+    try:
+        configure_physics(c)
+        jaw0 = np.array([-4e-3, 0.0, 3e-3])  # jaw 0 of a stitcher at the origin, identity pose
+        sut = Suture.create(
+            c,
+            straight_path(tuple(jaw0 - [0, 0.15, 0]), (0, 1, 0), 0.15),
+            SutureParams(length=0.15, n_segments=20),
+        )
+        st = Stitcher.create(
+            c, "st", (0.0, 0.0, 0.0), needle_body=sut.needle_body, place_needle=False
+        )
+
+        def run(seconds: float) -> list[float]:
+            xs = []
+            for _ in range(round(seconds * 1000)):
+                st.step()
+                sut.pre_step()
+                p.stepSimulation(physicsClientId=c)
+                xs.append(float(sut.centerline()[-1][0]))
+            return xs
+
+        run(0.1)
+        st.pass_needle()
+        xs = run(st.travel_time + 0.2)
+        needle, _ = p.getBasePositionAndOrientation(sut.needle_body, physicsClientId=c)
+        jaw1, _ = p.getBasePositionAndOrientation(st.jaws[1], physicsClientId=c)
+        assert st.needle_holder == 1
+        assert np.linalg.norm(np.asarray(needle) - jaw1) < 1e-3
+        line = sut.centerline()
+        assert np.linalg.norm(line[-1] - np.asarray(jaw1)) < 1e-3
+        # The thread's end swept across steadily (no jump at the hand-over's end), and the
+        # capsule behind it was dragged along +x too.
+        assert xs[0] < -3e-3 and max(np.diff(xs)) < 2e-4
+        assert line[-2][0] > jaw0[0] + 2e-3
+    finally:
+        p.disconnect(physicsClientId=c)
 
 
 @pytest.mark.parametrize("f_static", [0.3, pytest.param(0.6, marks=pytest.mark.slow)])

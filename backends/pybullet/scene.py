@@ -556,6 +556,13 @@ def _build_model(
             hook = spec.tool == "hook-grasper"
             tool = Grasper.create(client, name, pos, quat, suture=suture, hook=hook)
         tool.mount(robot.body_id, robot.tool_link)
+        # The tool's parts pass through the pad and never touch their own instrument.
+        links = range(-1, p.getNumJoints(robot.body_id, physicsClientId=client))
+        for part in (b for b in tool._parts() if b >= 0):
+            for body in tissue.bodies:
+                p.setCollisionFilterPair(part, body, -1, -1, 0, physicsClientId=client)
+            for link in links:
+                p.setCollisionFilterPair(part, robot.body_id, -1, link, 0, physicsClientId=client)
         scene.tools[name] = tool
     return scene
 

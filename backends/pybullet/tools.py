@@ -28,6 +28,7 @@ from enum import Enum
 from typing import TYPE_CHECKING
 
 import numpy as np
+from numpy.typing import NDArray
 
 from suture_engine.errors import SutureError
 
@@ -47,6 +48,7 @@ __all__ = [
 
 Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
+FloatArray = NDArray[np.float64]
 _IDENTITY: Quat = (0.0, 0.0, 0.0, 1.0)
 SHAFT_RADIUS = 1.5e-3
 """Radius of a grasper's instrument shaft [m]."""
@@ -580,6 +582,8 @@ class Stitcher(Tool):
     _jaw_drives: list[int] = field(default_factory=list)
     _lock: int = -1
     _timer: float = -1.0
+    _sweep_from: FloatArray = field(default_factory=lambda: np.zeros(3))
+    _sweep_orientation: Quat = _IDENTITY
 
     @classmethod
     def create(
@@ -688,8 +692,61 @@ class Stitcher(Tool):
             raise ToolError(self.name, "pass the needle", "a hand-over is under way")
         self._timer = self.travel_time
 
+    def _jaw_offset(self, k: int) -> FloatArray:
+        """Jaw ``k``'s position in the tip frame at the current opening [m]."""
+        side = (-1, 1)[k]
+        return np.array([side * (self.gap / 2 + self.opening * self.open_width), 0.0, 3e-3])
+
+    def _start_sweep(self) -> None:
+        """Hand the needle from its jaw to the tip body's sweep constraint (same pose)."""
+        import pybullet as p
+
+        c = self.client
+        pb, ob = p.getBasePositionAndOrientation(self.body, physicsClientId=c)
+        pn, on = p.getBasePositionAndOrientation(self.needle_body, physicsClientId=c)
+        inv_p, inv_o = p.invertTransform(pb, ob)
+        rel_p, rel_o = p.multiplyTransforms(inv_p, inv_o, pn, on)
+        p.removeConstraint(self._lock, physicsClientId=c)
+        # Parent: the needle at its origin; child: the tip body at the needle's pose in the
+        # tip frame, so that changeConstraint's child pivot moves the needle in that frame.
+        self._sweep_from = np.asarray(rel_p, dtype=float) - self._jaw_offset(self.needle_holder)
+        self._sweep_orientation = tuple(rel_o)
+        self._lock = p.createConstraint(
+            self.needle_body,
+            -1,
+            self.body,
+            -1,
+            p.JOINT_FIXED,
+            [0, 0, 0],
+            [0, 0, 0],
+            list(rel_p),
+            childFrameOrientation=list(rel_o),
+            physicsClientId=c,
+        )
+        p.changeConstraint(self._lock, maxForce=self.drive_force, physicsClientId=c)
+
+    def _sweep(self, fraction: float) -> None:
+        """Move the needle ``fraction`` of the way from the giving to the receiving jaw."""
+        import pybullet as p
+
+        a = self._jaw_offset(self.needle_holder)
+        b = self._jaw_offset(1 - self.needle_holder)
+        at = a + (b - a) * min(max(fraction, 0.0), 1.0) + self._sweep_from
+        p.changeConstraint(
+            self._lock,
+            jointChildPivot=at.tolist(),
+            jointChildFrameOrientation=list(self._sweep_orientation),
+            maxForce=self.drive_force,
+            physicsClientId=self.client,
+        )
+
     def step(self) -> None:
-        """Advance jaw travel and a needle hand-over by one physics step."""
+        """Advance jaw travel and a needle hand-over by one physics step.
+
+        During a hand-over the needle (and with it the thread's end) sweeps across the
+        gap from the giving jaw to the receiving one over ``travel_time``, keeping its
+        pose relative to the jaw; the receiving jaw then locks it.
+        """
         import pybullet as p
 
         self._cancel_weight()
@@ -700,7 +757,10 @@ class Stitcher(Tool):
             self._drive_jaws()
         if not self.passing:
             return
+        if self._timer >= self.travel_time - 1e-12:
+            self._start_sweep()
         self._timer -= self.dt
+        self._sweep(1.0 - max(self._timer, 0.0) / self.travel_time)
         if self._timer < 0.0:
             self._timer = -1.0
             p.removeConstraint(self._lock, physicsClientId=self.client)

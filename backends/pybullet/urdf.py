@@ -82,13 +82,19 @@ def _split_tool(body: RigidBody, fraction: float) -> tuple[_Inertial, _Inertial]
     return _Inertial(ms, zs, is_xy, is_xy, is_z), _Inertial(mt, 0.0, it, it, it)
 
 
-def _cyl(radius: float, length: float, z: float, rgba: str, collision: bool) -> str:
+def _cyl(
+    radius: float, length: float, z: float, rgba: str, collision: bool, bare: float = 0.0
+) -> str:
+    """A cylinder along z centred at ``z``; its collision shape leaves out the ``bare`` [m]
+    at its +z end."""
     geo = f'<geometry><cylinder radius="{radius}" length="{length}"/></geometry>'
     org = f'<origin xyz="0 0 {z}" rpy="0 0 0"/>'
     out = f'    <visual>{org}{geo}<material name="m{rgba.replace(" ", "_")}">'
     out += f'<color rgba="{rgba}"/></material></visual>\n'
     if collision:
-        out += f"    <collision>{org}{geo}</collision>\n"
+        cgeo = f'<geometry><cylinder radius="{radius}" length="{length - bare}"/></geometry>'
+        corg = f'<origin xyz="0 0 {z - bare / 2}" rpy="0 0 0"/>'
+        out += f"    <collision>{corg}{cgeo}</collision>\n"
     return out
 
 
@@ -125,6 +131,7 @@ def endobot_urdf(
     tool_fraction: float = 0.1,
     shaft_length: float = 0.35,
     shaft_radius: float = 0.0025,
+    jaw_length: float = 0.006,
 ) -> str:
     """The URDF text of one EndoBot.
 
@@ -135,6 +142,8 @@ def endobot_urdf(
             ``include_tool`` [-]; the totals are unchanged.
         shaft_length: length of the shaft's visual/collision cylinder behind the tip [m].
         shaft_radius: shaft radius [m] (5 mm laparoscopic tools: 0.0025).
+        jaw_length: length of the jaws behind the tip that the shaft's collision shape
+            leaves out [m]: the jaws are thinner than the shaft and hold by constraint.
 
     Returns:
         URDF XML text.
@@ -157,7 +166,7 @@ def endobot_urdf(
     out += _joint(JOINT_NAMES[2], "revolute", b2.name, b3.name, "0 0 1", lim[2])
     out += _link(b3.name, _from_body(b3), _cyl(0.006, 0.04, -0.08, "0.7 0.7 0.7 1", False))
     out += _joint(JOINT_NAMES[3], "prismatic", b3.name, b4.name, "0 0 1", lim[3])
-    shaft = _cyl(shaft_radius, shaft_length, -0.5 * shaft_length, "0.8 0.8 0.8 1", True)
+    shaft = _cyl(shaft_radius, shaft_length, -0.5 * shaft_length, "0.8 0.8 0.8 1", True, jaw_length)
     if include_tool:
         shaft_in, tip_in = _split_tool(b4, tool_fraction)
         out += _link(b4.name, shaft_in, shaft)
