@@ -154,7 +154,6 @@ class PDController:
         self._kd: list[float] = self.gains.kd.tolist()
         self._fc: list[float] = np.asarray(model.coulomb, dtype=float).tolist()
         self._zeros: list[float] = [0.0] * n
-        self._tau = np.zeros(n)
 
     def __repr__(self) -> str:
         return (
@@ -174,7 +173,7 @@ class PDController:
             qd_des: reference velocities.
 
         Returns:
-            Joint torques/forces [N m, N]; internal storage overwritten next call.
+            Joint torques/forces [N m, N], a fresh array.
         """
         ql, vl, qrl, vrl = as_floats(q), as_floats(qd), as_floats(q_des), as_floats(qd_des)
         g = self.model.gravity_vector(q).tolist() if self.gravity else self._zeros
@@ -192,6 +191,4 @@ class PDController:
                         out[i] += fc[i]
                     elif v < 0.0:
                         out[i] -= fc[i]
-        tau = self._tau
-        tau[:] = out
-        return tau
+        return np.array(out)

@@ -175,6 +175,11 @@ def coriolis_vector(q: Vec, qd: Vec, th: DynamicCoefficients) -> FloatArray:
 def _gravity_terms(q: Vec, g: Gravity) -> tuple[float, float, float]:
     """w1 = -gᵀ ∂(R e_z)/∂q1 / c2 ... helpers: (c1 gy + s1 gz, gᵀ ∂u/∂q2, gᵀ u)."""
     q1, q2, _, _ = _floats(q)
+    return _gravity_terms_of(q1, q2, g)
+
+
+def _gravity_terms_of(q1: float, q2: float, g: Gravity) -> tuple[float, float, float]:
+    """:func:`_gravity_terms` from the two joint angles that matter [rad]."""
     c1, s1 = math.cos(q1), math.sin(q1)
     c2, s2 = math.cos(q2), math.sin(q2)
     gx, gy, gz = g
@@ -202,7 +207,7 @@ def gravity_vector(
         G(q) [N*m, N*m, N*m, N], shape (4,).
     """
     qf = _floats(q)
-    w1, w2, w4 = _gravity_terms(qf, g)
+    w1, w2, w4 = _gravity_terms_of(qf[0], qf[1], g)
     k = th.ml2 + th.m4 * qf[3]
     res = np.empty(4) if out is None else out
     res[0] = (th.ml1 - th.ml2 + k * math.cos(qf[1])) * w1

@@ -111,16 +111,16 @@ class ModeController:
                 sp = sp + command.qd * self.dt
                 self._vel_setpoint[robot] = sp
                 self._hold[robot] = sp
-                return np.array(self._pd[robot].update(obs.q, obs.qd, sp, command.qd))
+                return self._pd[robot].update(obs.q, obs.qd, sp, command.qd)  # a fresh array
             assert command.q is not None
             qd_des = command.qd if command.qd is not None else self._zero
             self._hold[robot] = np.array(command.q)
             self._vel_setpoint.pop(robot, None)
-            return np.array(self._pd[robot].update(obs.q, obs.qd, command.q, qd_des))
+            return self._pd[robot].update(obs.q, obs.qd, command.q, qd_des)
         hold = self._hold.get(robot)
         if hold is None:
             hold = self._hold[robot] = np.array(obs.q)
-        return np.array(self._pd[robot].update(obs.q, obs.qd, hold, self._zero))
+        return self._pd[robot].update(obs.q, obs.qd, hold, self._zero)
 
     def reset(self, poses: Mapping[str, FloatArray]) -> None:
         """Forget modes and capture ``poses`` as the held poses."""
