@@ -206,3 +206,67 @@ def test_stitch_procedure_passes_the_needle_through_the_tissue(tmp_path: Path) -
     assert over.any() and line[over, 2].min() < -1e-3
     for point in ((0.0, -4e-3, 0.0), (0.0, 4e-3, 0.0)):
         assert np.linalg.norm(line - np.asarray(point), axis=1).min() < 6e-3
+
+
+def test_inject_grasp_slip_drops_what_the_jaw_holds_and_the_tool_state_does_not_show_it() -> None:
+    be = SurgicalPyBulletBackend(start="stitched")
+    try:
+        be.reset(load_procedure(BENCH).scene, 0)
+        assert be.scene is not None
+        stitcher, grasper = be.scene.tools["endobot_1"], be.scene.tools["endobot_2"]
+        assert isinstance(stitcher, Stitcher) and isinstance(grasper, Grasper)
+        # The grasper holds nothing yet: nothing to lose.
+        assert be.inject_grasp_slip("endobot_2") is False
+        # Its jaws (taken off the robot here, to put them on the tail without a motion
+        # planner) closed 1 mm above the tail's axis catch a capsule...
+        tail = be.scene.suture.centerline()[1]
+        import pybullet as p
+
+        grasper_free = be.scene.tools["endobot_2"]
+        p.removeConstraint(grasper_free.drive, physicsClientId=be.client)
+        grasper_free._mounted = False
+        grasper_free._drive_to_world(
+            (float(tail[0]), float(tail[1]), float(tail[2]) + 1e-3), (1.0, 0.0, 0.0, 0.0)
+        )
+        _hold(be, {"endobot_2": ToolCommand(jaw_closed=True)}, 200)
+        assert grasper.holding
+        # ...and a slip loses it while the jaws stay closed, as the tool state says.
+        assert be.inject_grasp_slip("endobot_2") is True
+        assert not grasper.holding and grasper.state is JawState.CLOSED
+        assert be.observe().robots["endobot_2"].tool.jaw_closed
+        # The stitcher's jaw loses the needle: it falls away from the jaw on its thread, and
+        # a commanded hand-over then passes nothing.
+        assert be.inject_grasp_slip("endobot_1") is True and not stitcher.holds_needle
+        _hold(be, {"endobot_1": ToolCommand(jaw_closed=True, jaw2_closed=True)}, 300)
+        assert stitcher.needle_holder == 0 and not stitcher.passing
+        assert be.inject_grasp_slip("endobot_1") is False
+        with pytest.raises(Exception, match="no robot"):
+            be.inject_grasp_slip("endobot_9")
+    finally:
+        be.close()
+
+
+def test_inject_snag_raises_the_channel_friction_for_its_duration() -> None:
+    """Snag: with the stitched thread in the channel, the friction the anchors can apply (the
+    static cap F_s (4.5)) rises by the snag's extra force for its duration, then returns."""
+    from backends.base import BackendError
+
+    be = SurgicalPyBulletBackend(start="stitched")
+    try:
+        be.reset(load_procedure(BENCH).scene, 0)
+        assert be.scene is not None and be.scene.tissue is not None
+        tissue = be.scene.tissue
+
+        def cap() -> float:
+            return float(tissue.f_static + tissue._snag_extra)
+
+        assert cap() == pytest.approx(0.3)
+        be.inject_snag(2.0, 0.05)
+        _hold(be, {}, 20)
+        assert cap() == pytest.approx(2.3)
+        _hold(be, {}, 40)
+        assert cap() == pytest.approx(0.3)
+        with pytest.raises(BackendError):
+            be.inject_snag(-1.0, 0.1)
+    finally:
+        be.close()

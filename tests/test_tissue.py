@@ -137,3 +137,51 @@ def test_pulling_through_costs_the_channel_friction_not_a_collision(stitch) -> N
     assert pull.max() < 1.0
     # The friction is felt while the thread slides: the mean pull is near F_s + F_v v.
     assert np.mean(pull[-800:]) == pytest.approx(0.32, abs=0.15)
+
+
+def test_snag_adds_its_friction_while_it_lasts() -> None:
+    """Drag a threaded suture through the channel at 10 mm/s; a 0.5 N snag for 0.4 s raises
+    the grip force by about 0.5 N while it lasts (F_s + 0.5 N, (4.5))."""
+    import pybullet as p
+
+    from backends.pybullet.tools import Grasper
+
+    c = p.connect(p.DIRECT)
+    try:
+        configure_physics(c)
+        tissue = Tissue.create(
+            c,
+            (0.0, 0.0, 0.0),
+            (-0.015, 0.0, 0.0),
+            (0.015, 0.0, 0.0),
+            depth=0.005,
+            size=(0.12, 0.04, 0.01),
+        )
+        for body in tissue.bodies:
+            p.changeDynamics(body, -1, lateralFriction=0.0, physicsClientId=c)
+        h = 0.0015
+        path = np.vstack(
+            [[-0.2, 0.0, h], [-0.016, 0.0, h], tissue.channel, [0.016, 0.0, h], [0.2, 0.0, h]]
+        )
+        sut = Suture.create(c, path, SutureParams(needle=False))
+        tissue.thread(sut)
+        end = sut.centerline()[-1]
+        grasper = Grasper.create(c, "g", (end[0], end[1], end[2]), suture=sut, hook=False)
+        grasper.close()
+        forces = []
+        for k in range(1400):
+            if k > 200:
+                grasper.set_pose((end[0] + 0.01 * (k - 200) / 1000, end[1], end[2]))
+            if k == 900:
+                tissue.snag(0.5, 0.4)
+            grasper.step()
+            sut.pre_step()
+            tissue.pre_step()
+            p.stepSimulation(physicsClientId=c)
+            forces.append(grasper.grip_force())
+        before = float(np.mean(forces[650:900]))
+        during = float(np.mean(forces[1050:1300]))
+        assert grasper.holding and tissue.inside
+        assert during - before == pytest.approx(0.5, abs=0.15)
+    finally:
+        p.disconnect(physicsClientId=c)

@@ -293,7 +293,7 @@ class PyBulletBackend:
                     else:
                         tool.close_jaws()
                         if closed[receiver] and not before[receiver] and closed[1 - receiver]:
-                            if not tool.passing and tool.opening == 0.0:
+                            if not tool.passing and tool.opening == 0.0 and tool.holds_needle:
                                 tool.pass_needle()
             elif isinstance(tool, Grasper):
                 if new.jaw_closed != old.jaw_closed:
@@ -451,6 +451,17 @@ class PyBulletBackend:
 class SurgicalPyBulletBackend(PyBulletBackend):
     """The PyBullet backend with the surgical scene (tissue, thread, mounted tools).
 
+    Fault-injection hooks (called by :class:`suture_engine.faults.backend.FaultyBackend`):
+
+    * :meth:`inject_grasp_slip` ``(robot)``: that robot's jaw loses what it holds, at once,
+      while the jaws stay closed and the measured tool state is unchanged (the sensors
+      see no slip): a grasper lets go of the thread capsule it held; a stitcher's jaw
+      lets go of the needle (it then hangs on the thread, and a commanded needle
+      hand-over does nothing).
+    * :meth:`inject_snag` ``(extra_friction_N, duration_s)``: the tissue's static friction
+      F_s (4.5) is raised by ``extra_friction_N`` [N] for ``duration_s`` [s] (the thread
+      catches in the tissue); it acts while thread lies in the stitch channel.
+
     Args:
         kwargs: as :class:`PyBulletBackend` (``surgical_scene`` is True).
     """
@@ -460,6 +471,50 @@ class SurgicalPyBulletBackend(PyBulletBackend):
     def __init__(self, **kwargs: Any) -> None:
         kwargs.setdefault("surgical_scene", True)
         super().__init__(**kwargs)
+
+    def _scene_tool(self, robot: str) -> Any:
+        self._need()
+        if robot not in self.robots:
+            raise BackendError(self.name, f"no robot named {robot!r}")
+        if self.scene is None:
+            raise BackendError(self.name, "no surgical scene is built")
+        return self.scene.tools.get(robot)
+
+    def inject_grasp_slip(self, robot: str) -> bool:
+        """Make ``robot``'s jaw lose the suture (or the needle) it holds.
+
+        Returns:
+            Whether anything was held (and is now lost).
+
+        Raises:
+            BackendError: no such robot, or the backend is not reset.
+        """
+        from backends.pybullet.tools import Grasper, Stitcher
+
+        tool = self._scene_tool(robot)
+        if isinstance(tool, Grasper):
+            return tool.slip()
+        if isinstance(tool, Stitcher):
+            return tool.drop_needle()
+        return False
+
+    def inject_snag(self, extra_friction_N: float, duration_s: float) -> None:
+        """Raise the tissue's static friction by ``extra_friction_N`` [N] for ``duration_s``
+        [s] (4.5).
+
+        Raises:
+            BackendError: the backend is not reset, or a negative friction or duration.
+        """
+        self._need()
+        if not (extra_friction_N >= 0.0 and duration_s >= 0.0):
+            raise BackendError(
+                self.name,
+                f"a snag needs friction >= 0 N and duration >= 0 s, got "
+                f"{extra_friction_N!r} N for {duration_s!r} s",
+            )
+        if self.scene is None or self.scene.tissue is None:
+            raise BackendError(self.name, "no tissue to snag in")
+        self.scene.tissue.snag(float(extra_friction_N), float(duration_s))
 
 
 class StitchedSurgicalPyBulletBackend(SurgicalPyBulletBackend):

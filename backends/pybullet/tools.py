@@ -372,6 +372,21 @@ class Grasper(Tool):
         """Whether the jaws hold a thread capsule."""
         return self._grasp >= 0
 
+    def slip(self) -> bool:
+        """The held capsule slips out of the closed jaws (a fault): they hold nothing.
+
+        Returns:
+            Whether a capsule was held.
+        """
+        import pybullet as p
+
+        if self._grasp < 0:
+            return False
+        p.removeConstraint(self._grasp, physicsClientId=self.client)
+        self._grasp = -1
+        self.held_segment = -1
+        return True
+
     def grip_force(self) -> float:
         """Force the jaws transmit to the held capsule [N] (0 if none)."""
         import pybullet as p
@@ -677,6 +692,27 @@ class Stitcher(Tool):
         """Whether a needle hand-over is under way."""
         return self._timer >= 0.0
 
+    @property
+    def holds_needle(self) -> bool:
+        """Whether a jaw (or a hand-over under way) holds the needle."""
+        return self._lock >= 0
+
+    def drop_needle(self) -> bool:
+        """The needle slips out of the jaw that holds it (a fault); a hand-over under way
+        stops.
+
+        Returns:
+            Whether the needle was held.
+        """
+        import pybullet as p
+
+        if self._lock < 0:
+            return False
+        p.removeConstraint(self._lock, physicsClientId=self.client)
+        self._lock = -1
+        self._timer = -1.0
+        return True
+
     def pass_needle(self) -> None:
         """Start handing the needle to the other jaw (takes ``travel_time``).
 
@@ -684,7 +720,7 @@ class Stitcher(Tool):
             ToolError: there is no needle, the jaws are not closed, or a hand-over is
                 already under way.
         """
-        if self.needle_body < 0:
+        if self.needle_body < 0 or self._lock < 0:
             raise ToolError(self.name, "pass the needle", "it holds no needle")
         if self.opening > 0.0 or self._target > 0.0:
             raise ToolError(self.name, "pass the needle", "the jaws are not closed")
