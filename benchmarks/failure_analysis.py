@@ -266,7 +266,7 @@ def lay_and_pull(
         for _ in range(round(settle * PHYSICS_RATE)):
             scene.step()
         settled = suture.centerline()
-        result = None
+        result: Any = None
         if pull > 0 and both:
             result = pull_ends(scene, left, right, target=pull, hold=hold, timeout=15.0)
         elif pull > 0:
