@@ -207,3 +207,17 @@ def test_stitch_points_named_or_nearest_the_wound_middle() -> None:
     assert np.allclose(entry, [0.005, -0.004, 0.0]) and np.allclose(exit_, [0.005, 0.004, 0.0])
     entry, exit_ = stitch_points(model.tissue)
     assert np.allclose(entry, [0.0, -0.004, 0.0]) and np.allclose(exit_, [0.0, 0.004, 0.0])
+
+
+def test_scene_field_suture_start_selects_the_stitched_start() -> None:
+    model = _model("bench.yaml")
+    stitched = model.model_copy(
+        update={"suture": model.suture.model_copy(update={"start": "stitched"})}
+    )
+    for m, threaded in ((model, False), (stitched, True)):
+        scene = build_scene(m)
+        try:
+            assert scene.tissue is not None
+            assert (scene.tissue.suture is scene.suture) is threaded
+        finally:
+            scene.close()

@@ -196,6 +196,11 @@ class Suture(_Model):
     """USP size (Table 7.1)."""
     length: Length = Field(gt=0.0)
     """Length of the suture [m]."""
+    start: Literal["needle", "stitched"] | None = None
+    """Start state in a simulator with a stitcher: ``needle`` (the thread hangs from the
+    needle in the stitcher's jaw; the default) or ``stitched`` (the stitch is already made:
+    the thread runs through the tissue with a 30 mm tail out of the entry point, and on
+    from the exit point to the needle in the stitcher's jaw)."""
 
     @field_validator("usp", mode="before")
     @classmethod
