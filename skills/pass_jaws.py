@@ -8,7 +8,7 @@ from pydantic import Field
 
 from skills.base import Skill, SkillParams
 from suture_engine.language.refs import RoleRef
-from suture_engine.language.units import Force
+from suture_engine.language.units import Duration, Force
 
 __all__ = ["PassJaws", "PassJawsParams"]
 
@@ -20,13 +20,18 @@ class PassJawsParams(SkillParams):
     """The role of the stitcher."""
     close_force: Force = Field(default=5.0, gt=0.0, le=30.0)
     """Force closing the jaws on the needle [N]."""
+    dwell: Duration = Field(default=0.3, ge=0.0, le=5.0)
+    """How long both jaws stay closed on the needle before the giving jaw opens [s]: the
+    hand-over itself takes time (about 0.2 s in the simulated stitcher), and a jaw
+    reported closed says nothing about the needle being locked in it."""
 
 
 class PassJaws(Skill):
     """Pass the needle to the stitcher's other jaw (algorithm 1 step 6).
 
     The jaw holding the needle is the one measured closed at the start. The
-    skill closes the other jaw, and once it is measured closed opens the first;
+    skill closes the other jaw, keeps both closed for ``dwell`` [s] once it is
+    measured closed (the needle changes jaws meanwhile), then opens the first;
     it succeeds when the first is measured open. It fails when the tool is not
     a stitcher, when the holder is ambiguous (both or neither jaw closed), or
     when a jaw does not respond within :attr:`JAW_S` [s]. The close force is
@@ -103,17 +108,25 @@ class PassJaws(Skill):
                 hold_command(self._robot, self._q), SkillStatus.FAILURE, self._failure
             )
         tool = obs.robots[self._robot].tool
+        p = self.params
+        assert isinstance(p, PassJawsParams)
         if self._phase == "close":
             cmd = hold_command(self._robot, self._q, self._tool(self.receiving_jaw, True))
             if self._closed(tool, self.receiving_jaw):
-                self._phase = "open"
+                self._phase = "dwell"
                 self._t_phase = obs.t
-                cmd = hold_command(self._robot, self._q, self._tool(self._from, False))
             elif obs.t - self._t_phase >= self.JAW_S:
                 return StepResult(
                     cmd, SkillStatus.FAILURE, f"jaw {self.receiving_jaw} did not close"
                 )
-            return StepResult(cmd)
+            else:
+                return StepResult(cmd)
+        if self._phase == "dwell":
+            if obs.t - self._t_phase < p.dwell:
+                return StepResult(hold_command(self._robot, self._q))
+            self._phase = "open"
+            self._t_phase = obs.t
+            return StepResult(hold_command(self._robot, self._q, self._tool(self._from, False)))
         cmd = hold_command(self._robot, self._q, self._tool(self._from, False))
         if not self._closed(tool, self._from):
             return StepResult(cmd, SkillStatus.SUCCESS)

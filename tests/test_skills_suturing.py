@@ -324,6 +324,19 @@ def test_pass_jaws_hands_the_needle_over_without_dropping_it(scene: Any) -> None
     assert back.obs[-1].robots["endobot_1"].tool.jaw_closed
 
 
+@pytest.mark.parametrize("dwell", [0.0, 0.3, 1.0])
+def test_pass_jaws_keeps_both_jaws_closed_for_the_dwell(scene: Any, dwell: float) -> None:
+    """The giving jaw opens only once the receiving jaw has been closed ``dwell`` [s]."""
+    qs, tools = start_pose(scene)
+    run = Run(PassJaws({"robot": "stitcher", "dwell": dwell}), scene, qs, tools)
+    assert run.status is SkillStatus.SUCCESS
+    both = [o.t for o in run.obs if o.robots["endobot_1"].tool.jaw2_closed]
+    opened = [o.t for o in run.obs if not o.robots["endobot_1"].tool.jaw_closed]
+    assert both and opened
+    held = opened[0] - both[0]
+    assert dwell <= held <= dwell + 0.05
+
+
 @pytest.mark.parametrize(
     "tool",
     [ToolState("stitcher", True, True), ToolState("stitcher"), ToolState("grasper", True)],
