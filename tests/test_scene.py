@@ -221,3 +221,34 @@ def test_scene_field_suture_start_selects_the_stitched_start() -> None:
             assert (scene.tissue.suture is scene.suture) is threaded
         finally:
             scene.close()
+
+
+def test_stitched_start_without_stitcher_holds_the_thread_in_the_needle_holder() -> None:
+    """Algorithm 3's scene (a plain grasper as needle holder, a bent-tip grasper): the
+    stitched start runs the thread through the channel with its tail out of the entry and
+    ends it, needle and all, closed in the needle holder's jaws."""
+    import pybullet as p
+
+    model = _model("bench-bent-tip.yaml")
+    scene = build_scene(model, seed=0, start="stitched")
+    try:
+        holder = scene.tools["endobot_1"]
+        assert isinstance(holder, Grasper) and not isinstance(holder, BentTipGrasper)
+        assert holder.holding and holder.held_segment == len(scene.suture.bodies) - 1
+        assert scene.tissue is not None and scene.tissue.suture is scene.suture
+        for _ in range(500):
+            scene.step()
+        line = scene.suture.centerline()
+        jaw, _ = holder.pose()
+        assert np.linalg.norm(line[-1] - np.asarray(jaw)) < 1e-3
+        needle, _ = p.getBasePositionAndOrientation(
+            scene.suture.needle_body, physicsClientId=scene.client
+        )
+        assert np.linalg.norm(np.asarray(needle) - np.asarray(jaw)) < 1e-3
+        assert _segment_distance(scene.tissue.channel, line).max() < 1e-3
+        assert _arc_length_to(line, np.asarray(scene.tissue.entry)) == pytest.approx(
+            0.03, abs=1.5e-3
+        )
+        assert scene.suture.stretch() < 0.03
+    finally:
+        scene.close()

@@ -483,14 +483,19 @@ def _build_model(
         diameter=float(model.suture.diameter),
     )
     stitchers = [n for n, spec in sorted(model.robots.items()) if spec.tool == "stitcher"]
+    holders = [n for n, spec in sorted(model.robots.items()) if spec.tool == "grasper"]
+    # Without a stitcher, the stitched start puts the needle's end of the thread in the
+    # jaws of the first plain grasper (the needle holder, algorithm 3).
+    holder = holders[0] if not stitchers and start == "stitched" and holders else None
     lift = normal * (params.collision_radius + 0.5e-3)
     threaded = not stitchers or start == "stitched"
-    if stitchers and start == "stitched":
-        tip, orn = robots[stitchers[0]].true_tool_pose()
+    carrier = stitchers[0] if stitchers else holder
+    if carrier is not None and start == "stitched":
+        tip, orn = robots[carrier].true_tool_pose()
         jaw, _ = p.multiplyTransforms(
             [float(v) for v in tip],
             [float(v) for v in orn],
-            [-Stitcher.gap / 2, 0.0, 3e-3],
+            [-Stitcher.gap / 2, 0.0, 3e-3] if stitchers else [0.0, 0.0, 0.0],
             [0.0, 0.0, 0.0, 1.0],
         )
         # The thread leaves jaw 0 outwards (along the tip's -x), clear of the shaft.
@@ -529,9 +534,11 @@ def _build_model(
     # The needle punctures the tissue (Tissue.track); the robots' instruments pass
     # through the pad too (its surface is where the stitch is made, not an obstacle).
     tissue.track(suture)
+    # The needle does not push the instruments either (it sweeps between the stitcher's
+    # jaws, under the shaft's end).
     for robot in robots.values():
         for link in range(-1, p.getNumJoints(robot.body_id, physicsClientId=client)):
-            for body in tissue.bodies:
+            for body in [*tissue.bodies, suture.needle_body]:
                 p.setCollisionFilterPair(robot.body_id, body, link, -1, 0, physicsClientId=client)
     scene = Scene(client=client, seed=seed, suture=suture, tissue=tissue, robots=robots, hold=hold)
     scene.rng = np.random.default_rng(seed)
@@ -555,6 +562,8 @@ def _build_model(
         else:
             hook = spec.tool == "hook-grasper"
             tool = Grasper.create(client, name, pos, quat, suture=suture, hook=hook)
+            if name == holder:
+                tool.grip(len(suture.bodies) - 1)
         tool.mount(robot.body_id, robot.tool_link)
         # The tool's parts pass through the pad and never touch their own instrument.
         links = range(-1, p.getNumJoints(robot.body_id, physicsClientId=client))

@@ -372,6 +372,21 @@ class Grasper(Tool):
         """Whether the jaws hold a thread capsule."""
         return self._grasp >= 0
 
+    def grip(self, segment: int) -> None:
+        """Close the jaws at once on thread capsule ``segment`` (a start state: the jaws
+        already hold it).
+
+        Raises:
+            ToolError: no thread, or no such capsule.
+        """
+        if self.suture is None or not 0 <= segment < len(self.suture.bodies):
+            raise ToolError(self.name, "grip the thread", f"no thread capsule {segment}")
+        if self._grasp < 0:
+            self._grasp = self._attach(self.body, self.suture.bodies[segment])
+            self.held_segment = segment
+        self.state = JawState.CLOSED
+        self._timer = 0.0
+
     def slip(self) -> bool:
         """The held capsule slips out of the closed jaws (a fault): they hold nothing.
 
