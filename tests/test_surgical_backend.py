@@ -270,3 +270,35 @@ def test_inject_snag_raises_the_channel_friction_for_its_duration() -> None:
             be.inject_snag(-1.0, 0.1)
     finally:
         be.close()
+
+
+def test_bend_option_bends_the_mounted_bent_tip_grasper() -> None:
+    """``bend=(bx, by)``: the mounted bent-tip grasper's jaws sit at link (x) T(0, 0, -L)
+    Rx(bx) Ry(by) T(0, 0, L) (L = tip_length; checked with scipy's rotations) and follow the
+    robot; unbent, they sit on the tool link."""
+    from scipy.spatial.transform import Rotation
+
+    from backends.pybullet.tools import BentTipGrasper
+
+    scene = load_procedure(PROCS.parent.parent / "procedures" / "knot-algorithm-3.yaml").scene
+    be = SurgicalPyBulletBackend(bend=(1.2, -0.3))
+    try:
+        be.reset(scene, 0)
+        assert be.scene is not None
+        name = next(n for n, t in be.scene.tools.items() if isinstance(t, BentTipGrasper))
+        tool = be.scene.tools[name]
+        _hold(be, {}, 100)
+        link, link_q = be.robots[name].true_tool_pose()
+        jaw, jaw_q = tool.pose()
+        r_link = Rotation.from_quat(np.asarray(link_q))
+        bend = Rotation.from_euler("XY", [1.2, -0.3])
+        expected = (
+            np.asarray(link)
+            + r_link.apply([0.0, 0.0, -tool.tip_length])
+            + (r_link * bend).apply([0.0, 0.0, tool.tip_length])
+        )
+        assert np.linalg.norm(np.asarray(jaw) - expected) < 3e-4
+        assert ((Rotation.from_quat(np.asarray(jaw_q)) * (r_link * bend).inv()).magnitude()) < 1e-2
+        assert np.linalg.norm(np.asarray(jaw) - np.asarray(link)) > 5e-3
+    finally:
+        be.close()

@@ -98,6 +98,10 @@ class PyBulletBackend:
         stitch: names of the stitch's entry and exit points; None: ``entry``/``exit``,
             else the numbered pair nearest the wound's middle
             (:func:`backends.pybullet.scene.stitch_points`).
+        bend: the universal joint's angles (about x, then about the turned y) [rad] of
+            every mounted bent-tip grasper, fixed for the run; None: straight. The jaws
+            turn about a point ``tip_length`` (8 mm) behind the robot's tool tip, so the
+            bent jaws are off the tool tip that the robot's kinematics reports.
     """
 
     name = "pybullet"
@@ -114,6 +118,7 @@ class PyBulletBackend:
         start: str | None = None,
         tail: float = 0.03,
         stitch: tuple[str, str] | None = None,
+        bend: tuple[float, float] | None = None,
     ) -> None:
         self.gui = gui
         self.dt = dt
@@ -131,6 +136,7 @@ class PyBulletBackend:
         self.start = start
         self.tail = tail
         self.stitch = stitch
+        self.bend = bend
         self.scene: Any = None
         """The :class:`backends.pybullet.scene.Scene` when the surgical scene is built."""
 
@@ -228,6 +234,12 @@ class PyBulletBackend:
             built = build_scene(scene, seed, start=self.start, tail=self.tail, stitch=self.stitch)
         except SutureError as exc:
             raise BackendError(self.name, str(exc)) from None
+        if self.bend is not None:
+            from backends.pybullet.tools import BentTipGrasper
+
+            for tool in built.tools.values():
+                if isinstance(tool, BentTipGrasper):
+                    tool.set_bend(float(self.bend[0]), float(self.bend[1]))
         self.scene = built
         self.client = built.client
         for i, (name, sim) in enumerate(sorted(built.robots.items())):

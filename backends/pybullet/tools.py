@@ -557,9 +557,43 @@ class BentTipGrasper(Grasper):
     _shaft: tuple[Vec3, Quat] = ((0.0, 0.0, 0.1), _IDENTITY)
 
     def set_bend(self, bend_x: float, bend_y: float) -> None:
-        """Command the universal joint's two angles [rad]."""
+        """Command the universal joint's two angles [rad].
+
+        Mounted on a robot link, the universal joint sits ``tip_length`` behind the link
+        (the robot's tool tip, where the unbent jaws are) and the jaws turn about it.
+        """
         self.bend_x, self.bend_y = bend_x, bend_y
-        self.set_pose(*self._shaft)
+        if self._mounted:
+            self._bend_mounted()
+        else:
+            self.set_pose(*self._shaft)
+
+    def _bend(self) -> tuple[Vec3, Quat]:
+        """The jaw frame in the universal joint's frame: Rx(bend_x) Ry(bend_y), then
+        ``tip_length`` along the bent z."""
+        import pybullet as p
+
+        outer = p.getQuaternionFromEuler([self.bend_x, 0.0, 0.0])
+        inner = p.getQuaternionFromEuler([0.0, self.bend_y, 0.0])
+        _, bend = p.multiplyTransforms([0, 0, 0], outer, [0, 0, 0], inner)
+        pos, orn = p.multiplyTransforms([0, 0, 0], bend, [0, 0, self.tip_length], _IDENTITY)
+        return tuple(pos), tuple(orn)  # type: ignore[return-value]
+
+    def _bend_mounted(self) -> None:
+        """Re-pose the jaws on the link: J = T(-tip_length) B; the drive's child frame is
+        J^-1 (the fixed drive makes link (x) parent frame = body (x) child frame)."""
+        import pybullet as p
+
+        bp, bo = self._bend()
+        jp, jo = p.multiplyTransforms([0, 0, -self.tip_length], _IDENTITY, bp, bo)
+        ip, io = p.invertTransform(jp, jo)
+        p.changeConstraint(
+            self.drive,
+            jointChildPivot=list(ip),
+            jointChildFrameOrientation=list(io),
+            maxForce=self.drive_force,
+            physicsClientId=self.client,
+        )
 
     def set_pose(self, position: Vec3, orientation: Quat = _IDENTITY) -> None:
         """Command the shaft end (the universal joint) pose; the jaws follow the bend.
@@ -573,15 +607,8 @@ class BentTipGrasper(Grasper):
         self._shaft = (position, orientation)
         # Universal joint: the outer axis x is fixed in the shaft, the inner axis y turns
         # with it, so the jaw frame is Rx(bend_x) Ry(bend_y) in the shaft frame.
-        outer = p.getQuaternionFromEuler([self.bend_x, 0.0, 0.0])
-        inner = p.getQuaternionFromEuler([0.0, self.bend_y, 0.0])
-        _, bend = p.multiplyTransforms([0, 0, 0], outer, [0, 0, 0], inner)
-        pos, orn = p.multiplyTransforms(
-            position, orientation, [0, 0, 0], bend, physicsClientId=self.client
-        )
-        pos, orn = p.multiplyTransforms(
-            pos, orn, [0, 0, self.tip_length], _IDENTITY, physicsClientId=self.client
-        )
+        bp, bo = self._bend()
+        pos, orn = p.multiplyTransforms(position, orientation, bp, bo, physicsClientId=self.client)
         super().set_pose(tuple(pos), tuple(orn))  # type: ignore[arg-type]
 
 
