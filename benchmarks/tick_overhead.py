@@ -80,7 +80,12 @@ def _instrument(interp: Any, skill: Any) -> None:
 
 
 def _replay(
-    trace: Path, out: Path | None, cvx: Any = None, stages: bool = False, fast: bool = True
+    trace: Path,
+    out: Path | None,
+    cvx: Any = None,
+    stages: bool = False,
+    fast: bool = True,
+    recorder_factory: Any = None,
 ) -> tuple[list[int], list[int], list[int]]:
     from backends.replay import ReplayBackend
     from suture_engine.runtime.interpreter import Interpreter
@@ -91,7 +96,16 @@ def _replay(
     be = ReplayBackend(trace)
     first = be.reset(proc.scene, 0)
     recorder: Recorder = Recorder()
-    if out is not None:
+    if recorder_factory is not None:
+        recorder = recorder_factory(
+            procedure=proc.name,
+            seed=0,
+            control_rate_hz=be.rate,
+            robots=be.robots,
+            backend="replay",
+            params={},
+        )
+    elif out is not None:
         recorder = TraceRecorder(
             out,
             procedure=proc.name,
@@ -154,6 +168,63 @@ def _replay(
     recorder.close()
     SKILL_NS[:] = skill_ns
     return ticks, cpu, cvx_ns
+
+
+def _paired_recorders(trace: Path, tmp: Path) -> tuple[list[int], list[int]]:
+    """CPU time per tick of the recorder's fast and generic paths, paired: each tick's
+    calls go to both recorders (alternating which goes first), so both see the same
+    machine load. Returns (fast, generic) [ns per tick, /qp message included]."""
+    from suture_engine.runtime.recorder import Recorder, TraceRecorder
+
+    clock = time.thread_time_ns
+    made: list[Any] = []
+
+    class Paired(Recorder):
+        def __init__(self, **kwargs: Any) -> None:
+            self.fast = TraceRecorder(tmp / "paired-fast.mcap", fast=True, **kwargs)
+            self.slow = TraceRecorder(tmp / "paired-generic.mcap", fast=False, **kwargs)
+            self.ns: tuple[list[int], list[int]] = ([], [])
+            self.acc = [0, 0]
+            self.k = 0
+            made.append(self)
+
+        def _both(self, name: str, *args: Any) -> None:
+            order = (0, 1) if self.k % 2 else (1, 0)
+            for i in order:
+                rec = self.fast if i == 0 else self.slow
+                t0 = clock()
+                getattr(rec, name)(*args)
+                self.acc[i] += clock() - t0
+
+        def qp(self, *args: Any) -> None:
+            self._both("qp", *args)
+
+        def transition(self, *args: Any) -> None:
+            self._both("transition", *args)
+
+        def event(self, *args: Any) -> None:
+            self._both("event", *args)
+
+        def operator(self, *args: Any) -> None:
+            self._both("operator", *args)
+
+        def tick(self, *args: Any) -> None:
+            self._both("tick", *args)
+            self.k += 1
+            for i in (0, 1):
+                self.ns[i].append(self.acc[i])
+            self.acc = [0, 0]
+
+        def close(self) -> None:
+            self.fast.close()
+            self.slow.close()
+
+    _replay(trace, None, recorder_factory=Paired)
+    pair = made[-1]
+    same = (tmp / "paired-fast.mcap").read_bytes() == (tmp / "paired-generic.mcap").read_bytes()
+    if not same:
+        raise SystemExit("the recorder's fast and generic paths wrote different files")
+    return pair.ns[0][5:], pair.ns[1][5:]
 
 
 def _cvxpy_twin() -> Any:
@@ -227,6 +298,7 @@ def main() -> None:
         engine, engine_cpu, skill_cpu = min(runs_en, key=lambda r: _stats(r[1])[0])
         generic_cpu = min(runs_gen, key=lambda r: _stats(r[1])[0])[1]
         spread = [_stats(r[1])[0] for r in runs_tr], [_stats(r[1])[0] for r in runs_en]
+        paired_fast, paired_generic = _paired_recorders(trace, Path(tmp))
         _replay(trace, Path(tmp) / "stages.mcap", stages=True)
         if args.profile is not None:
             _profile(trace, Path(tmp) / "profile.mcap", args.profile)
@@ -252,6 +324,11 @@ def main() -> None:
     m, p = _stats(generic_cpu)
     print(f"  trace, generic path: median {m:7.1f} us   p99 {p:7.1f} us (the recorder's fast")
     print("                       path off: a dict per message through the json module)")
+    m_f, p_f = _stats(paired_fast)
+    m_g, p_g = _stats(paired_generic)
+    print("trace writing alone, both recorder paths on the same ticks (paired, CPU):")
+    print(f"  fast path   : median {m_f:7.1f} us   p99 {p_f:7.1f} us per tick (same file)")
+    print(f"  generic path: median {m_g:7.1f} us   p99 {p_g:7.1f} us per tick")
     m, p = _stats(skill_cpu)
     print(f"  of which skill.step: median {m:7.1f} us   p99 {p:7.1f} us (move-constrained + QP)")
     print("CPU time per stage, a separate instrumented pass with the trace on (sums of")
