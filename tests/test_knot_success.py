@@ -134,3 +134,10 @@ def test_command_line_refuses_bad_algorithms() -> None:
     assert err.value.code == 2
     with pytest.raises(SystemExit):
         ks.main(["--algorithms", "a,b"])
+
+
+def test_accepted_options_read_the_backend_constructors() -> None:
+    names = ks.accepted_options("pybullet-surgical")
+    assert {"gui", "dt", "tail"} <= names  # PyBulletBackend's own keywords, via the MRO
+    assert "kwargs" not in names and "self" not in names
+    assert ks.accepted_options("no-such-backend") == set()
