@@ -9,7 +9,10 @@ depend on the number of workers or on the other algorithms):
   vector with independent N(0, sigma^2) components, sigma = 1 mm (the skills' model is
   off by that much);
 - joint friction: every joint's friction scaled by one factor ~ U(0.7, 1.3);
-- suture stiffness: the thread's stiffness scaled by one factor ~ U(0.8, 1.2).
+- suture stiffness: the thread's stiffness scaled by one factor ~ U(0.8, 1.2). On the
+  surgical backend this scales the thread's bending stiffness EI, whose default is 0 (the
+  limp thread the knot physics is tuned with): the factor then changes nothing unless a
+  nominal EI is given with ``--bending-stiffness`` (the table says so).
 
 A perturbation is passed to the backend only if its constructor takes the option (see
 ``OPTION_NAMES``); the table says which ones were applied, so an unperturbed run is never
@@ -25,7 +28,7 @@ Usage::
 
     python benchmarks/knot_success.py [--seeds 20] [--algorithms 1,2,3] [--max-time 300]
         [--workers 2] [--out runs/knot-success] [--backend pybullet-surgical]
-        [--base-seed 0] [--no-perturb]
+        [--base-seed 0] [--no-perturb] [--bending-stiffness EI]
 """
 
 from __future__ import annotations
@@ -302,6 +305,9 @@ def main(argv: Sequence[str]) -> int:
     ap.add_argument("--backend", default="pybullet-surgical")
     ap.add_argument("--base-seed", type=int, default=0)
     ap.add_argument("--no-perturb", action="store_true")
+    ap.add_argument(
+        "--bending-stiffness", type=float, default=None, help="nominal thread EI [N*m^2]"
+    )
     args = ap.parse_args(list(argv))
     try:
         algorithms = [int(a) for a in args.algorithms.split(",") if a.strip()]
@@ -316,6 +322,15 @@ def main(argv: Sequence[str]) -> int:
         algorithms, args.seeds, base_seed=args.base_seed, backend=args.backend, out=args.out,
         max_time_s=args.max_time, perturb=perturb, accepted=accepted,
     )  # fmt: skip
+    nominal_ei = args.bending_stiffness
+    if nominal_ei is not None:
+        if "suture_bending_stiffness" not in accepted:
+            ap.error(
+                f"--bending-stiffness: backend {args.backend} takes no suture_bending_stiffness"
+            )
+        jobs = [
+            j._replace(options={**j.options, "suture_bending_stiffness": nominal_ei}) for j in jobs
+        ]
     print(
         f"square-knot.yaml on {args.backend}: {args.seeds} run(s) per algorithm "
         f"{algorithms}, max {args.max_time:g} s simulated each, {args.workers} worker(s)"
@@ -324,6 +339,15 @@ def main(argv: Sequence[str]) -> int:
         print(f"perturbations applied: {', '.join(applied) or 'none'}")
         if missing:
             print(f"NOT applied (the backend takes no option for them): {', '.join(missing)}")
+        if (
+            "stiffness_scale" in applied
+            and not nominal_ei
+            and "suture_bending_stiffness" in accepted
+        ):
+            print(
+                "NOTE: the stiffness factor scales the thread's bending stiffness EI, 0 by "
+                "default:\n      no effect unless --bending-stiffness sets a nominal EI"
+            )
     else:
         print("perturbations: off (--no-perturb)")
     t0 = time.perf_counter()
