@@ -302,3 +302,69 @@ def test_bend_option_bends_the_mounted_bent_tip_grasper() -> None:
         assert np.linalg.norm(np.asarray(jaw) - np.asarray(link)) > 5e-3
     finally:
         be.close()
+
+
+def _tips(be: PyBulletBackend) -> dict[str, np.ndarray]:
+    return {n: np.asarray(be.ground_truth()[f"{n}/tool_tip"]) for n in be.robots}
+
+
+@pytest.mark.parametrize("surgical", [False, True])
+def test_base_error_moves_the_actual_base_not_the_declared_one(surgical: bool) -> None:
+    scene = load_procedure(BENCH).scene
+    error = (0.002, -0.001, 0.0005)
+    cls = SurgicalPyBulletBackend if surgical else PyBulletBackend
+    nominal, shifted = cls(), cls(base_error={"endobot_1": error})
+    try:
+        nominal.reset(scene, 0)
+        shifted.reset(scene, 0)
+        a, b = _tips(nominal), _tips(shifted)
+        # Same joints, base displaced: the true tool tip moves by the displacement.
+        assert np.allclose(b["endobot_1"] - a["endobot_1"], error, atol=2e-5)
+        assert np.allclose(b["endobot_2"], a["endobot_2"], atol=2e-5)
+        # What the skills are told (the declared geometry) is unchanged.
+        assert dict(nominal.geometry().base_positions) == dict(shifted.geometry().base_positions)
+        assert shifted.geometry().base_positions["endobot_1"] == pytest.approx((-0.07, -0.05, 0.12))
+    finally:
+        nominal.close()
+        shifted.close()
+    from backends.base import BackendError
+
+    with pytest.raises(BackendError, match="unknown robots"):
+        cls(base_error={"endobot_7": error}).reset(scene, 0)
+
+
+def _drift(friction_scale: float, friction: bool = True) -> np.ndarray:
+    """Joint motion [rad, rad, rad, m] after 0.3 s of gravity compensation plus a small
+    constant torque on every joint (robots only)."""
+    be = PyBulletBackend(friction=friction, friction_scale=friction_scale)
+    try:
+        first = be.reset(load_procedure(BENCH).scene, 0)
+        sim = be.robots["endobot_1"]
+        push = np.array([0.05, 0.05, 0.005, 0.5])
+        for _ in range(300):
+            q = np.asarray(be.observe().robots["endobot_1"].q)
+            tau = gravity_vector(q, sim.model_params) + push
+            be.apply(Command({"endobot_1": RobotCommand.torque(tau)}))
+            be.step()
+        return np.asarray(be.observe().robots["endobot_1"].q) - first.robots["endobot_1"].q
+    finally:
+        be.close()
+
+
+def test_friction_scale_changes_the_joint_friction() -> None:
+    """Less friction, more motion under the same torques; a zero scale is the same as no
+    friction at all (an independent switch)."""
+    full, reduced = _drift(1.0), _drift(0.5)
+    assert np.all(np.abs(reduced) >= np.abs(full) - 1e-9)
+    assert np.linalg.norm(reduced - full) > 1e-4
+    assert np.allclose(_drift(0.0), _drift(1.0, friction=False), atol=1e-9)
+
+
+def test_suture_stiffness_options_reach_the_thread() -> None:
+    be = SurgicalPyBulletBackend(suture_bending_stiffness=1e-6, suture_stiffness_scale=1.2)
+    try:
+        be.reset(load_procedure(BENCH).scene, 0)
+        assert be.scene is not None
+        assert be.scene.suture.params.bending_stiffness == pytest.approx(1.2e-6)
+    finally:
+        be.close()

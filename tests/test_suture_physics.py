@@ -434,3 +434,36 @@ def test_suture_params_are_validated() -> None:
     assert err.value.name == "n_segments"
     with pytest.raises(InvalidSutureParams):
         knotted_path((False, True), (0, 0, 0), 0.01, length=0.1)
+
+
+def _sharpest_bend(stiffness: float) -> float:
+    """Largest joint angle [deg] of a thread laid in an L, 50 ms after release."""
+    import pybullet as p
+
+    from backends.pybullet.suture import Suture, configure_physics
+
+    c = p.connect(p.DIRECT)
+    try:
+        configure_physics(c)
+        path = np.array([[-0.15, 0.0, 0.1], [0.0, 0.0, 0.1], [0.0, 0.15, 0.1]])
+        sut = Suture.create(c, path, SutureParams(needle=False, bending_stiffness=stiffness))
+        for _ in range(50):
+            sut.pre_step()
+            p.stepSimulation(physicsClientId=c)
+        d = np.diff(sut.centerline(), axis=0)
+        d /= np.linalg.norm(d, axis=1)[:, None]
+        cos = np.clip(np.einsum("ij,ij->i", d[:-1], d[1:]), -1.0, 1.0)
+        return float(np.degrees(np.arccos(cos)).max())
+    finally:
+        p.disconnect(physicsClientId=c)
+
+
+def test_bending_stiffness_straightens_a_bent_thread() -> None:
+    """A limp thread keeps its 90 deg corner; with flexural rigidity EI the corner opens,
+    the faster the stiffer (the ±20 % stiffness perturbation of the knot benchmark)."""
+    limp = _sharpest_bend(0.0)
+    soft, nominal, stiff = (_sharpest_bend(ei) for ei in (0.8e-6, 1e-6, 1.2e-6))
+    assert limp == pytest.approx(90.0, abs=0.5)
+    assert limp > soft > nominal > stiff
+    with pytest.raises(InvalidSutureParams):
+        SutureParams(bending_stiffness=-1.0)

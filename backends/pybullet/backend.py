@@ -102,6 +102,14 @@ class PyBulletBackend:
             every mounted bent-tip grasper, fixed for the run; None: straight. The jaws
             turn about a point ``tip_length`` (8 mm) behind the robot's tool tip, so the
             bent jaws are off the tool tip that the robot's kinematics reports.
+        base_error: perturbation: robot name -> displacement [m] of its actual base from
+            the scene's declared base (a calibration error: the skills' model, from the
+            declared geometry, is off by it).
+        friction_scale: perturbation: every simulated joint friction (Coulomb, static,
+            viscous; (3.42)-(3.45)) times this factor [-].
+        suture_bending_stiffness: the thread's flexural rigidity EI [N*m^2] (surgical
+            scene); 0, the default, is the limp thread the knot physics is tuned with.
+        suture_stiffness_scale: perturbation: EI times this factor [-].
     """
 
     name = "pybullet"
@@ -119,6 +127,10 @@ class PyBulletBackend:
         tail: float = 0.03,
         stitch: tuple[str, str] | None = None,
         bend: tuple[float, float] | None = None,
+        base_error: Mapping[str, tuple[float, float, float]] | None = None,
+        friction_scale: float = 1.0,
+        suture_bending_stiffness: float = 0.0,
+        suture_stiffness_scale: float = 1.0,
     ) -> None:
         self.gui = gui
         self.dt = dt
@@ -137,6 +149,10 @@ class PyBulletBackend:
         self.tail = tail
         self.stitch = stitch
         self.bend = bend
+        self.base_error = dict(base_error or {})
+        self.friction_scale = friction_scale
+        self.suture_bending_stiffness = suture_bending_stiffness
+        self.suture_stiffness_scale = suture_stiffness_scale
         self.scene: Any = None
         """The :class:`backends.pybullet.scene.Scene` when the surgical scene is built."""
 
@@ -168,6 +184,11 @@ class PyBulletBackend:
         self._hands = []
         self.tick = 0
         base_positions = {}
+        unknown = sorted(set(self.base_error) - set(self._bases(scene)))
+        if unknown:
+            raise BackendError(self.name, f"base_error for unknown robots {unknown}")
+        if not (math.isfinite(self.friction_scale) and self.friction_scale >= 0.0):
+            raise BackendError(self.name, f"friction_scale {self.friction_scale!r} must be >= 0")
         ft_model = self._ft_model(scene)
         if self._wants_surgical_scene(scene):
             self._build_surgical_scene(scene, seed, ft_model)
@@ -182,15 +203,18 @@ class PyBulletBackend:
             p.setTimeStep(self.dt, physicsClientId=client)
             p.setGravity(0.0, 0.0, -9.81, physicsClientId=client)
             for i, (name, (pos, rpy, tool)) in enumerate(sorted(self._bases(scene).items())):
+                offset = np.asarray(self.base_error.get(name, (0.0, 0.0, 0.0)), dtype=float)
                 sim = EndoBotSim(
                     client,
-                    base_position=pos,
+                    base_position=tuple(np.asarray(pos, dtype=float) + offset),
                     base_orientation=_quaternion(rpy),
                     q0=self._q0.get(name, DEFAULT_Q0),
                     friction=self.friction,
                     ft_sensor=ft_model,
                     seed=seed * 1000 + i,
                 )
+                if self.friction_scale != 1.0:
+                    sim.scale_friction(self.friction_scale)
                 self.robots[name] = sim
                 self._tools[name] = ToolState(kind=tool)
                 base_positions[name] = (float(pos[0]), float(pos[1]), float(pos[2]))
@@ -231,7 +255,17 @@ class PyBulletBackend:
         from backends.pybullet.sensors import Sensor
 
         try:
-            built = build_scene(scene, seed, start=self.start, tail=self.tail, stitch=self.stitch)
+            if not (self.suture_stiffness_scale >= 0.0 and self.suture_bending_stiffness >= 0.0):
+                raise BackendError(self.name, "suture stiffness and its scale must be >= 0")
+            built = build_scene(
+                scene,
+                seed,
+                start=self.start,
+                tail=self.tail,
+                stitch=self.stitch,
+                base_error=self.base_error,
+                bending_stiffness=self.suture_bending_stiffness * self.suture_stiffness_scale,
+            )
         except SutureError as exc:
             raise BackendError(self.name, str(exc)) from None
         if self.bend is not None:
@@ -246,6 +280,8 @@ class PyBulletBackend:
             q0 = self._q0.get(name, DEFAULT_Q0)
             sim.reset(q0)
             sim.friction_enabled = self.friction
+            if self.friction_scale != 1.0:
+                sim.scale_friction(self.friction_scale)
             if ft_model is not None:
                 # build_scene makes ideal base sensors; give them the scene's noise and delay.
                 sim._ft = Sensor(ft_model, 6, np.random.default_rng(seed * 1000 + i))

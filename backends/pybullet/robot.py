@@ -277,6 +277,19 @@ class EndoBotSim:
         )
         return np.array(st[4]), np.array(st[5])
 
+    def scale_friction(self, factor: float) -> None:
+        """Scale every joint's friction (Coulomb, static and viscous) by ``factor`` [-]
+        (a perturbation: the controllers' friction model stays the nominal one).
+
+        Raises:
+            SimulationError: a negative or non-finite factor.
+        """
+        if not (math.isfinite(factor) and factor >= 0.0):
+            raise SimulationError(self.params.name, f"friction scale {factor!r} must be >= 0")
+        self._fc = [f * factor for f in self._fc]
+        self._fs = [f * factor for f in self._fs]
+        self._fv = [f * factor for f in self._fv]
+
     def friction_torques(self, q: Vec, qd: Vec, tau: Vec) -> FloatArray:
         """Friction torques [N*m, ..., N] this step, solved as described in the module doc.
 

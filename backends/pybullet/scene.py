@@ -25,6 +25,7 @@ target tension, then hold.
 from __future__ import annotations
 
 import copy
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -182,6 +183,8 @@ def build_scene(
     start: str | None = None,
     tail: float = DEFAULT_TAIL,
     stitch: tuple[str, str] | None = None,
+    base_error: Mapping[str, Any] | None = None,
+    bending_stiffness: float = 0.0,
 ) -> Scene:
     """Build the scene headless from the scene model or a plain dict.
 
@@ -199,6 +202,10 @@ def build_scene(
         tail: with ``start="stitched"``: the tail left out of the entry point [m].
         stitch: names of the bite's entry and exit points; None for :func:`stitch_points`'
             choice.
+        base_error: with a scene model: robot name -> displacement [m] of the robot's
+            actual base from its declared position (a calibration error).
+        bending_stiffness: the thread's flexural rigidity EI [N*m^2]
+            (:class:`~backends.pybullet.suture.SutureParams`).
 
     Returns:
         The scene; graspers hold nothing yet and sit at the thread's ends.
@@ -209,7 +216,7 @@ def build_scene(
     import pybullet as p
 
     if config is not None and hasattr(config, "robots"):
-        return _from_model(config, seed, start, tail, stitch)
+        return _from_model(config, seed, start, tail, stitch, base_error, bending_stiffness)
     cfg = copy.deepcopy(DEFAULT_SCENE)
     for key, value in (config or {}).items():
         if key not in cfg:
@@ -427,6 +434,8 @@ def _from_model(
     start: str | None = None,
     tail: float = DEFAULT_TAIL,
     stitch: tuple[str, str] | None = None,
+    base_error: Mapping[str, Any] | None = None,
+    bending_stiffness: float = 0.0,
 ) -> Scene:
     """Build the scene from the language's scene model (robots, tissue, suture)."""
     import pybullet as p
@@ -436,16 +445,34 @@ def _from_model(
     if start not in START_STATES:
         raise SceneError("suture.start", start, list(START_STATES))
     entry, exit_ = stitch_points(model.tissue, stitch)
+    errors = {name: np.zeros(3) for name in model.robots}
+    for name, vector in (base_error or {}).items():
+        if name not in errors:
+            raise SceneError("base_error", name, sorted(errors))
+        v = np.asarray(vector, dtype=float)
+        if v.shape != (3,) or not np.all(np.isfinite(v)):
+            raise SceneError(f"base_error.{name}", vector)
+        errors[name] = v
     client = p.connect(p.DIRECT)
     try:
-        return _build_model(client, model, seed, start, tail, entry, exit_)
+        return _build_model(
+            client, model, seed, start, tail, entry, exit_, errors, bending_stiffness
+        )
     except BaseException:
         p.disconnect(physicsClientId=client)
         raise
 
 
 def _build_model(
-    client: int, model: Any, seed: int, start: str, tail: float, entry: Any, exit_: Any
+    client: int,
+    model: Any,
+    seed: int,
+    start: str,
+    tail: float,
+    entry: Any,
+    exit_: Any,
+    base_error: Mapping[str, Any],
+    bending_stiffness: float,
 ) -> Scene:
     import pybullet as p
 
@@ -458,7 +485,7 @@ def _build_model(
     for i, (name, spec) in enumerate(sorted(model.robots.items())):
         robots[name] = EndoBotSim(
             client,
-            base_position=tuple(spec.base.position),
+            base_position=tuple(np.asarray(spec.base.position, float) + base_error[name]),
             base_orientation=_quaternion(spec.base.rpy),
             q0=_Q0,
             seed=seed * 1000 + i,
@@ -481,6 +508,7 @@ def _build_model(
         length=float(model.suture.length),
         n_segments=max(40, round(model.suture.length / 7.5e-3)),
         diameter=float(model.suture.diameter),
+        bending_stiffness=bending_stiffness,
     )
     stitchers = [n for n, spec in sorted(model.robots.items()) if spec.tool == "stitcher"]
     holders = [n for n, spec in sorted(model.robots.items()) if spec.tool == "grasper"]

@@ -106,6 +106,10 @@ class SutureParams:
         max_link_force: largest force a joint between capsules may apply [N].
         needle: whether to attach a needle body to the last capsule.
         needle_radius: radius of the curved (half-circle) needle [m].
+        bending_stiffness: the thread's flexural rigidity EI [N*m^2]; each joint between
+            capsules then resists bending with a torque EI / segment_length times the
+            sine of its bend angle (applied in :meth:`Suture.pre_step`). 0 (the default)
+            is the limp thread the knot tests are tuned with.
     """
 
     length: float = 0.3
@@ -121,6 +125,7 @@ class SutureParams:
     max_link_force: float = 1000.0
     needle: bool = True
     needle_radius: float = 6e-3
+    bending_stiffness: float = 0.0
 
     def __post_init__(self) -> None:
         if self.n_segments < 3:
@@ -138,6 +143,8 @@ class SutureParams:
                 raise InvalidSutureParams(name, getattr(self, name), "> 0")
         if self.friction < 0:
             raise InvalidSutureParams("friction", self.friction, ">= 0")
+        if not self.bending_stiffness >= 0:
+            raise InvalidSutureParams("bending_stiffness", self.bending_stiffness, ">= 0")
 
     @property
     def segment_length(self) -> float:
@@ -503,13 +510,33 @@ class Suture:
                 p.WORLD_FRAME,
                 physicsClientId=self.client,
             )
-        if self._lift <= 0.0:
+        stiff = self.params.bending_stiffness > 0.0
+        if self._lift <= 0.0 and not stiff:
             return
+        axes = []
         for b in self.bodies:
-            pos, _ = p.getBasePositionAndOrientation(b, physicsClientId=self.client)
-            p.applyExternalForce(
-                b, -1, [0.0, 0.0, self._lift], pos, p.WORLD_FRAME, physicsClientId=self.client
-            )
+            pos, orn = p.getBasePositionAndOrientation(b, physicsClientId=self.client)
+            if self._lift > 0.0:
+                p.applyExternalForce(
+                    b, -1, [0.0, 0.0, self._lift], pos, p.WORLD_FRAME, physicsClientId=self.client
+                )
+            if stiff:
+                axes.append(p.getMatrixFromQuaternion(orn)[2::3])
+        if stiff:
+            self._bend(np.array(axes))
+
+    def _bend(self, axes: FloatArray) -> None:
+        """Bending stiffness: at each joint, torques +-k (a_i x a_(i+1)), k = EI / segment
+        length [N*m/rad], turn the two capsules' axes towards each other."""
+        import pybullet as p
+
+        k = self.params.bending_stiffness / self.params.segment_length
+        torque = k * np.cross(axes[:-1], axes[1:])
+        total = np.zeros_like(axes)
+        total[:-1] += torque
+        total[1:] -= torque
+        for b, t in zip(self.bodies, total, strict=True):
+            p.applyExternalTorque(b, -1, t.tolist(), p.WORLD_FRAME, physicsClientId=self.client)
 
     # ---- ground truth (evaluation only) -------------------------------------------------
 
