@@ -270,7 +270,9 @@ class FaultyBackend:
                     extra[f"q_lock_{name}"] = self._locks[(name, j)]
             elif f.kind == "grasp-slip":
                 for name in self._targets(f):
-                    self.inner.inject_grasp_slip(name)
+                    held = self.inner.inject_grasp_slip(name)
+                    if isinstance(held, bool):  # the surgical backend says if it held anything
+                        extra[f"lost_{name}"] = held
             elif f.kind == "snag":
                 duration = f.default_duration or 0.2
                 self.inner.inject_snag(float(f.value or 0.0), duration)
