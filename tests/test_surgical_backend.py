@@ -148,10 +148,19 @@ def test_stitched_backend_starts_with_the_stitch_made_and_the_needle_held() -> N
         # the needle (Fig. 4.3), and the report follows the physics.
         _hold(be, {"endobot_1": ToolCommand(jaw_closed=True)}, 50)
         assert stitcher.needle_holder == 0 and not stitcher.passing
-        _hold(be, {"endobot_1": ToolCommand(jaw_closed=True, jaw2_closed=True)}, 300)
-        assert stitcher.needle_holder == 1
+        _hold(be, {"endobot_1": ToolCommand(jaw_closed=True, jaw2_closed=True)}, 50)
+        # The receiving jaw reads closed only once the needle is in it (0.2 s hand-over).
+        assert stitcher.passing and not be.observe().robots["endobot_1"].tool.jaw2_closed
+        _hold(be, {"endobot_1": ToolCommand(jaw_closed=True, jaw2_closed=True)}, 250)
+        assert stitcher.needle_holder == 1 and be.observe().robots["endobot_1"].tool.jaw2_closed
         _hold(be, {"endobot_1": ToolCommand(jaw_closed=False, jaw2_closed=True)}, 50)
         assert stitcher.needle_holder == 1 and stitcher.opening == 0.0
+        # Asked while the jaws are still closing, the hand-over waits for them.
+        _hold(be, {"endobot_1": ToolCommand(jaw_closed=False, jaw2_closed=False)}, 300)
+        assert stitcher.opening == 1.0
+        _hold(be, {"endobot_1": ToolCommand(jaw_closed=False, jaw2_closed=True)}, 10)
+        _hold(be, {"endobot_1": ToolCommand(jaw_closed=True, jaw2_closed=True)}, 500)
+        assert stitcher.needle_holder == 0 and not stitcher.passing
     finally:
         be.close()
 

@@ -331,7 +331,8 @@ class PyBulletBackend:
             if isinstance(tool, Stitcher):
                 # Jaw 1 / jaw 2 are the stitcher's -x / +x jaws; the needle sits in
                 # needle_holder. Closing the empty jaw while the holder is closed hands
-                # the needle over (Fig. 4.3); both open opens the jaws.
+                # the needle over (Fig. 4.3) once the jaws are closed; the receiving jaw
+                # reads closed when the needle is in it; both open opens the jaws.
                 closed = (bool(new.jaw_closed), bool(new.jaw2_closed))
                 before = (bool(old.jaw_closed), bool(old.jaw2_closed))
                 receiver = 1 - tool.needle_holder
@@ -341,8 +342,7 @@ class PyBulletBackend:
                     else:
                         tool.close_jaws()
                         if closed[receiver] and not before[receiver] and closed[1 - receiver]:
-                            if not tool.passing and tool.opening == 0.0 and tool.holds_needle:
-                                tool.pass_needle()
+                            tool.request_pass()
             elif isinstance(tool, Grasper):
                 if new.jaw_closed != old.jaw_closed:
                     (tool.close if new.jaw_closed else tool.open)()
@@ -374,6 +374,17 @@ class PyBulletBackend:
             raise BackendError(self.name, "not reset (or closed)")
         return self._p
 
+    def _tool_reading(self, name: str) -> ToolState:
+        """The tool state as measured: the commanded one, except that a stitcher's
+        receiving jaw reads closed only once the needle hand-over is done."""
+        state = self._tools[name]
+        tool = self.scene.tools.get(name) if self.scene is not None else None
+        if tool is None or not getattr(tool, "passing", False):
+            return state
+        if tool.needle_holder == 0:
+            return ToolState(state.kind, state.jaw_closed, False, state.hook_extension)
+        return ToolState(state.kind, False, state.jaw2_closed, state.hook_extension)
+
     def observe(self) -> Measurement:
         """Encoders and base F/T sensors of every robot."""
         self._need()
@@ -383,7 +394,7 @@ class PyBulletBackend:
             robots[name] = RobotMeasurement(
                 m.joints.values,
                 m.base_wrench.values,
-                self._tools[name],
+                self._tool_reading(name),
                 fault=not (m.joints.fresh and m.base_wrench.fresh),
             )
         return Measurement(self.tick, self.tick * self.dt, robots)

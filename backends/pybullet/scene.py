@@ -47,6 +47,7 @@ from suture_engine.errors import SutureError
 __all__ = [
     "DEFAULT_SCENE",
     "DEFAULT_TAIL",
+    "PAD_SIZE",
     "START_STATES",
     "PullResult",
     "Scene",
@@ -103,6 +104,11 @@ START_STATES = ("needle", "stitched")
 stitcher's jaw, or the stitch is already made (:func:`stitched_path`)."""
 DEFAULT_TAIL = 0.03
 """Tail out of the entry point in the stitched start state [m]."""
+PAD_SIZE = (0.24, 0.24, 0.01)
+"""Tissue pad of a scene model: length across the wound, width along it, thickness [m].
+Wide enough that the thread's slack (the stitched start lays ~160 mm of it on the
+surface, out to ~90 mm from the wound) stays on the pad instead of sinking past its edge
+and snagging under it; the instruments pass through the pad."""
 
 _KNOTS: dict[str, tuple[bool, ...]] = {
     "overhand": (False,),
@@ -502,7 +508,7 @@ def _build_model(
         exit=tuple(exit_),
         normal=tuple(normal),
         depth=channel_depth(float(np.linalg.norm(exit_ - entry))),
-        size=(0.08, 0.08, 0.01),
+        size=PAD_SIZE,
     )
     params = SutureParams(
         length=float(model.suture.length),

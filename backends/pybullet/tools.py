@@ -639,6 +639,7 @@ class Stitcher(Tool):
     _jaw_drives: list[int] = field(default_factory=list)
     _lock: int = -1
     _timer: float = -1.0
+    _pending: bool = False
     _sweep_from: FloatArray = field(default_factory=lambda: np.zeros(3))
     _sweep_orientation: Quat = _IDENTITY
 
@@ -722,8 +723,10 @@ class Stitcher(Tool):
             self._jaw_drives[k] = cons
 
     def open_jaws(self) -> None:
-        """Start opening the jaws (takes ``travel_time``)."""
+        """Start opening the jaws (takes ``travel_time``); a hand-over not yet started is
+        called off."""
         self._target = 1.0
+        self._pending = False
 
     def close_jaws(self) -> None:
         """Start closing the jaws (takes ``travel_time``)."""
@@ -731,8 +734,14 @@ class Stitcher(Tool):
 
     @property
     def passing(self) -> bool:
-        """Whether a needle hand-over is under way."""
-        return self._timer >= 0.0
+        """Whether a needle hand-over is under way (or asked for and waiting for the jaws
+        to close)."""
+        return self._timer >= 0.0 or self._pending
+
+    def request_pass(self) -> None:
+        """Hand the needle over as soon as the jaws are closed (now if they are)."""
+        if self.needle_body >= 0 and self._lock >= 0 and not self.passing:
+            self._pending = True
 
     @property
     def holds_needle(self) -> bool:
@@ -753,6 +762,7 @@ class Stitcher(Tool):
         p.removeConstraint(self._lock, physicsClientId=self.client)
         self._lock = -1
         self._timer = -1.0
+        self._pending = False
         return True
 
     def pass_needle(self) -> None:
@@ -766,8 +776,9 @@ class Stitcher(Tool):
             raise ToolError(self.name, "pass the needle", "it holds no needle")
         if self.opening > 0.0 or self._target > 0.0:
             raise ToolError(self.name, "pass the needle", "the jaws are not closed")
-        if self.passing:
+        if self._timer >= 0.0:
             raise ToolError(self.name, "pass the needle", "a hand-over is under way")
+        self._pending = False
         self._timer = self.travel_time
 
     def _jaw_offset(self, k: int) -> FloatArray:
@@ -833,7 +844,9 @@ class Stitcher(Tool):
             delta = self._target - self.opening
             self.opening += max(-rate, min(rate, delta))
             self._drive_jaws()
-        if not self.passing:
+        if self._pending and self.opening == 0.0 and self._target == 0.0:
+            self.pass_needle()
+        if self._timer < 0.0:
             return
         if self._timer >= self.travel_time - 1e-12:
             self._start_sweep()
