@@ -251,3 +251,26 @@ def test_same_seed_same_faults_byte_identical_trace_on_pybullet(tmp_path: Path) 
     a = _run(tmp_path, *faults, seed=4, name="a", backend="pybullet")
     b = _run(tmp_path, *faults, seed=4, name="b", backend="pybullet")
     assert a.trace.read_bytes() == b.trace.read_bytes()
+
+
+@pytest.mark.slow
+def test_grasp_slip_and_snag_on_the_surgical_backend(tmp_path: Path) -> None:
+    """The surgical backend's hooks take the faults at their trigger (the record says whether
+    the jaw held anything); the run goes on and its true tension stays under the limit."""
+    from suture_engine.faults.campaign import trace_violations
+
+    result = run_procedure(
+        ROOT / "tests" / "procedures" / "skills-grasp-rotate.yaml",
+        backend="pybullet-surgical",
+        out=tmp_path / "run",
+        faults=["endobot_2:grasp-slip@state rotate+0.2 s", "snag=3 N@state rotate for 300 ms"],
+        max_time_s=20.0,
+    )
+    records = {(r.kind, r.phase): r for r in read_faults(result.trace)}
+    assert set(records) == {("grasp-slip", "start"), ("snag", "start"), ("snag", "end")}
+    assert "lost_endobot_2" in records["grasp-slip", "start"].params
+    snag = records["snag", "end"].t - records["snag", "start"].t
+    assert snag == pytest.approx(0.3, abs=1.5e-3)
+    limit = float(result.summary.tension_limit_N or 0.0)
+    true_max, true_over, *_ = trace_violations(result.trace, limit)
+    assert true_max == true_max and true_over == 0  # the backend has a thread; no violation
