@@ -301,7 +301,7 @@ def sticks_by_lp(beta: float, gamma: float, mu: float) -> bool:
     return bool(res.status == 0)
 
 
-@settings(max_examples=120, deadline=None)
+@settings(max_examples=80, deadline=None)
 @given(angles, angles, frictions)
 def test_sliding_condition_matches_the_friction_lp(beta: float, gamma: float, mu: float) -> None:
     lo, hi = sticks_by_lp(beta, gamma, mu * (1 - 1e-6)), sticks_by_lp(beta, gamma, mu * (1 + 1e-6))
@@ -543,7 +543,7 @@ def test_tight_bend_alone_is_not_a_contact() -> None:
     assert knot_lay(pts, diameter=DIA).lay == "no-knot"
 
 
-@settings(max_examples=100, deadline=None)
+@settings(max_examples=60, deadline=None)
 @given(st.lists(st.floats(min_value=-1.0, max_value=1.0), min_size=12, max_size=12))
 def test_segment_distance_matches_dense_sampling(c: list[float]) -> None:
     from suture_engine.suture.knot import _segment_distances
