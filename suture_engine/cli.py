@@ -72,7 +72,7 @@ def run(
             help="Inject a fault (repeatable), e.g. 'ft.bias=0.5 N@2 s', "
             "'endobot_1:enc.dropout@3 s for 20 ms', 'snag=2 N@state bite', "
             "'endobot_1:pitch.joint-lock@1 s', 'blow-up@5 s;mode=energy' "
-            "(grammar: suture_engine/faults/syntax.py, docs/language.md).",
+            "(grammar and kinds: docs/faults.md).",
         ),
     ] = None,
 ) -> None:
