@@ -207,3 +207,15 @@ def test_centerline_is_looked_up_on_its_ticks_only(tmp_path: Path) -> None:
     topics = [m.topic for m in TraceReader(tmp_path / "t.mcap").messages()]
     assert topics.count("/ground_truth/suture") == 3
     assert topics.count("/ground_truth/tension") == 250
+
+
+def test_without_orjson_the_generic_path_writes_the_same_file(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    from suture_engine.trace import codec
+
+    with_orjson = _record(tmp_path / "a.mcap", fast=True)
+    monkeypatch.setattr(codec, "_FAST", [None])  # as when orjson is not installed
+    assert codec.encode_vectors([np.zeros(2)]) is None
+    without = _record(tmp_path / "b.mcap", fast=True)
+    assert with_orjson == without
