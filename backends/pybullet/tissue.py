@@ -126,6 +126,7 @@ class Tissue:
     _snag_extra: float = 0.0
     _snag_steps: int = 0
     _sigma: float | None = None
+    _dt: float | None = None
 
     @classmethod
     def create(
@@ -320,15 +321,23 @@ class Tissue:
         tangent = u[k] / np.sqrt(uu[k])[:, None]
         return q[idx, k], tangent, s
 
-    def _thread_axes(self, sut: Suture) -> tuple[FloatArray, FloatArray]:
-        """Centre [m] and unit axis (tail to needle) of every capsule of ``sut``."""
+    def _thread_axes(self, sut: Suture, span: float) -> tuple[FloatArray, FloatArray]:
+        """Centre [m] and unit axis (tail to needle) of the capsules of ``sut`` that can be
+        in or next to the channel (``span`` [m] long) this step: all of them the first
+        time, then those within two capsules of where the thread was (the rest: NaN)."""
         import pybullet as p
 
         c = self.client
-        pos = np.empty((len(sut.bodies), 3))
-        axis = np.empty((len(sut.bodies), 3))
-        for i, b in enumerate(sut.bodies):
-            x, q = p.getBasePositionAndOrientation(b, physicsClientId=c)
+        n = len(sut.bodies)
+        pos = np.full((n, 3), np.nan)
+        axis = np.full((n, 3), np.nan)
+        window = range(n)
+        if self._sigma is not None:
+            seg = sut.params.segment_length
+            lo = max(0, int(self._sigma / seg) - 2)
+            window = range(lo, min(n, int((self._sigma + span) / seg) + 3))
+        for i in window:
+            x, q = p.getBasePositionAndOrientation(sut.bodies[i], physicsClientId=c)
             pos[i] = x
             axis[i] = p.getMatrixFromQuaternion(q)[2::3]
         return pos, axis
@@ -352,6 +361,8 @@ class Tissue:
             window = range(max(0, k - 1), min(n, k + 2))
         best, sigma = np.inf, 0.0
         for i in window:
+            if np.isnan(pos[i, 0]):
+                continue
             t = self._closest_on(entry, pos, axis, i, h)
             d = float(np.linalg.norm(pos[i] + (2 * t - 1) * h * axis[i] - entry))
             if d < best:
@@ -382,16 +393,16 @@ class Tissue:
         if sut is None or len(self.channel) < 2:
             return
         c = self.client
-        pos, axes = self._thread_axes(sut)
+        lam = np.concatenate(
+            [[0.0], np.cumsum(np.linalg.norm(np.diff(self.channel, axis=0), axis=1))]
+        )
+        span = float(lam[-1])
+        pos, axes = self._thread_axes(sut, span)
         seg = sut.params.segment_length
         h = seg / 2
         total = seg * len(pos)
         self._update_sigma(pos, axes, h)
         sigma = float(self._sigma or 0.0)
-        lam = np.concatenate(
-            [[0.0], np.cumsum(np.linalg.norm(np.diff(self.channel, axis=0), axis=1))]
-        )
-        span = float(lam[-1])
         first = max(0, int(sigma / seg))
         last = min(len(pos) - 1, int(min(sigma + span, total - 1e-12) / seg))
         inside = list(range(first, last + 1)) if sigma < total else []
@@ -404,11 +415,14 @@ class Tissue:
         self._passing = passing
         self.inside = inside
         # Friction the anchors applied in the last step, along the channel (4.5, static part).
-        _, tangent, _ = self._project(pos)
+        tangent = {}
+        if inside:
+            _, tan_in, _ = self._project(pos[inside])
+            tangent = dict(zip(inside, tan_in, strict=True))
         static = 0.0
         for i, cons in list(self._anchors.items()):
-            force = np.asarray(p.getConstraintState(cons, physicsClientId=c)[:3])
-            if i in inside:
+            if i in tangent:
+                force = np.asarray(p.getConstraintState(cons, physicsClientId=c)[:3])
                 static -= float(force @ tangent[i])
             else:
                 p.removeConstraint(cons, physicsClientId=c)
@@ -417,35 +431,36 @@ class Tissue:
             self.last_friction = self.last_sliding_speed = 0.0
             return
         vel = np.array([p.getBaseVelocity(sut.bodies[i], physicsClientId=c)[0] for i in inside])
-        tan = tangent[inside]
+        tan = np.array([tangent[i] for i in inside])
         axial = np.einsum("ij,ij->i", vel, tan)
         l_dot = float(axial.mean())
         mass = sut.params.segment_mass
-        dt = float(p.getPhysicsEngineParameters(physicsClientId=c)["fixedTimeStep"])
+        if self._dt is None:
+            self._dt = float(p.getPhysicsEngineParameters(physicsClientId=c)["fixedTimeStep"])
+        dt = self._dt
         c_visc = min(self.f_viscous / len(inside), 0.5 * mass / dt)
         c_lat = min(self.c_lateral, 0.5 * mass / dt)
         cap = (self.f_static + self._snag_extra) / len(inside)
         self.last_sliding_speed = l_dot
         self.last_friction = static - c_visc * len(inside) * l_dot
-        forces = {i: np.zeros(3) for i in inside}
-        k_point = self.k_lateral / len(self.channel)
-        for x, lj in zip(self.channel, lam, strict=True):
-            arc = sigma + float(lj)
-            if arc >= total:
-                break
-            i = min(int(arc / seg), len(pos) - 1)
-            t = self._closest_on(x, pos, axes, i, h)
-            at = pos[i] + (2 * t - 1) * h * axes[i]
-            err = x - at
-            err -= axes[i] * float(err @ axes[i])
-            p.applyExternalForce(
-                sut.bodies[i],
-                -1,
-                (k_point * err).tolist(),
-                at.tolist(),
-                p.WORLD_FRAME,
-                physicsClientId=c,
-            )
+        # Guidance: each channel point pulls the nearest point of the capsule at its arc
+        # length, across that capsule's axis; summed per capsule as a force at its centre
+        # and a torque.
+        arc = sigma + lam
+        keep = arc < total
+        idx = np.minimum((arc[keep] / seg).astype(int), len(pos) - 1)
+        x = self.channel[keep]
+        ax = axes[idx]
+        start = pos[idx] - h * ax
+        t = np.clip(np.einsum("ij,ij->i", x - start, ax) / seg, 0.0, 1.0)
+        at = start + (seg * t)[:, None] * ax
+        err = x - at
+        err -= ax * np.einsum("ij,ij->i", err, ax)[:, None]
+        pull = (self.k_lateral / len(self.channel)) * err
+        force_sum = np.zeros((len(pos), 3))
+        torque_sum = np.zeros((len(pos), 3))
+        np.add.at(force_sum, idx, pull)
+        np.add.at(torque_sum, idx, np.cross(at - pos[idx], pull))
         for row, i in enumerate(inside):
             anchor = self._anchors.get(i)
             if anchor is None:
@@ -465,7 +480,7 @@ class Tissue:
                 anchor, jointChildPivot=pos[i].tolist(), maxForce=cap, physicsClientId=c
             )
             v_perp = vel[row] - axes[i] * float(vel[row] @ axes[i])
-            force = forces[i] - c_lat * v_perp - c_visc * axial[row] * tan[row]
+            force = force_sum[i] - c_lat * v_perp - c_visc * axial[row] * tan[row]
             p.applyExternalForce(
                 sut.bodies[i],
                 -1,
@@ -474,6 +489,10 @@ class Tissue:
                 p.WORLD_FRAME,
                 physicsClientId=c,
             )
+            if np.any(torque_sum[i]):
+                p.applyExternalTorque(
+                    sut.bodies[i], -1, torque_sum[i].tolist(), p.WORLD_FRAME, physicsClientId=c
+                )
 
 
 def _resample_polyline(path: FloatArray, count: int) -> FloatArray:
