@@ -179,6 +179,8 @@ class Interpreter:
         self._waiting_ticks = 0
         self._last_skill: Any = None
         self._tension: dict[str, float] = {}
+        self._shared_skill: Any = None
+        """The running skill when it is a shared-control one (``mode: shared``)."""
         self._true_tension = [-math.inf, math.nan]
         """Peak and last true thread tension of the ground truth [N] (evaluation only)."""
         self.interrupted = False
@@ -210,6 +212,11 @@ class Interpreter:
         if start is not None:
             start(ctx)
         self.ctx = ctx
+        # decided once per step (a pydantic model without ``mode`` raises in getattr)
+        params = getattr(skill, "params", None)
+        fields = getattr(type(params), "model_fields", None) or {}
+        shared = "mode" in fields and getattr(params, "mode", None) == "shared"
+        self._shared_skill = skill if shared else None
 
     # ----------------------------------------------------------------- one tick
     def _sanitise(self, meas: Measurement) -> Measurement:
@@ -241,10 +248,11 @@ class Interpreter:
         self._pending_meas = None
         meas = self._sanitise(meas)
         robots = {}
+        trusted = RobotObservation.trusted
         for name, m in meas.robots.items():
-            qd = np.array(self._washout[name].update(m.q))
+            qd = self._washout[name].update(m.q).copy()  # the filter's storage is reused
             qd.flags.writeable = False
-            robots[name] = RobotObservation(m.q, qd, m.base_wrench, m.tool)
+            robots[name] = trusted(m.q, qd, m.base_wrench, m.tool)  # read-only arrays
         return meas, Observation(meas.tick, meas.t, robots, self.geometry)
 
     def _record_transitions(self, time_ns: int, records: list[Any]) -> None:
@@ -353,13 +361,15 @@ class Interpreter:
         emergency tension lock leaves these robots to the surgeon (Manual's invariant
         is the workspace, 4.45); the non-finite and stale-sensor locks still act."""
         a = self.automaton
+        mode = a.mode
+        shared = self._shared_skill is not None and self._shared_skill is a.active_skill
+        if not self.robot_modes and mode is not Mode.MANUAL and not shared:
+            return set()  # the common tick
         out = {r for r, m in self.robot_modes.items() if m is Mode.MANUAL}
-        if a.mode is Mode.MANUAL:
+        if mode is Mode.MANUAL:
             out.update(self.robots)
-        elif a.mode is Mode.AUTONOMOUS and a.active_step is not None:
-            params = getattr(a.active_skill, "params", None)
-            if getattr(params, "mode", None) == "shared":
-                out.update(a.active_step.robots or self.robots)
+        elif mode is Mode.AUTONOMOUS and shared and a.active_step is not None:
+            out.update(a.active_step.robots or self.robots)
         return out
 
     def _held_robot_blocks(self, time_ns: int) -> None:

@@ -200,6 +200,19 @@ class RobotObservation:
     base_wrench: FloatArray
     tool: ToolState
 
+    @classmethod
+    def trusted(
+        cls, q: FloatArray, qd: FloatArray, base_wrench: FloatArray, tool: ToolState
+    ) -> RobotObservation:
+        """An observation from read-only float64 arrays that the caller never changes (no
+        copy, no checks): the interpreter's per-tick fast path."""
+        o = object.__new__(cls)
+        object.__setattr__(o, "q", q)
+        object.__setattr__(o, "qd", qd)
+        object.__setattr__(o, "base_wrench", base_wrench)
+        object.__setattr__(o, "tool", tool)
+        return o
+
 
 @dataclass(frozen=True)
 class Observation:
