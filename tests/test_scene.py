@@ -252,3 +252,61 @@ def test_stitched_start_without_stitcher_holds_the_thread_in_the_needle_holder()
         assert scene.suture.stretch() < 0.03
     finally:
         scene.close()
+
+
+def _reach(scene, name: str, point: np.ndarray, seconds: float = 1.5) -> None:  # type: ignore[no-untyped-def]
+    """Move robot ``name`` smoothly over ``seconds`` (then 0.5 s more) to the joints
+    PyBullet's own IK gives for its tool tip at ``point`` [m]."""
+    import pybullet as p
+
+    robot = scene.robots[name]
+    sol = p.calculateInverseKinematics(
+        robot.body_id,
+        robot.tool_link,
+        point.tolist(),
+        maxNumIterations=200,
+        residualThreshold=1e-6,
+        physicsClientId=scene.client,
+    )
+    start = np.asarray(scene.hold[name], dtype=float)
+    goal = np.asarray(sol[:4], dtype=float)
+    ticks = round(seconds * 1000)
+    for k in range(ticks + 500):  # a joint ramp (no step: the hold PD would overshoot)
+        s = min(1.0, k / ticks)
+        q = start + (goal - start) * (3 * s * s - 2 * s * s * s)
+        scene.hold[name] = (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+        scene.step()
+
+
+@pytest.mark.slow
+def test_mounted_grasper_holds_the_thread_it_closes_on_and_releases_it() -> None:
+    """On the robot: the hook grasper's jaws closed 2 mm above the stitched start's tail
+    hold it (it rises with the jaws); opened, they let go (it does not follow them up)."""
+    model = _model("bench.yaml")
+    scene = build_scene(model, seed=0, start="stitched")
+    try:
+        grasper = scene.tools["endobot_2"]
+        assert isinstance(grasper, Grasper)
+        tail = scene.suture.centerline()[1].copy()  # 7.5 mm from the tail's end
+        _reach(scene, "endobot_2", tail + np.array([0.0, 0.0, 2e-3]))
+        jaw, _ = grasper.pose()
+        assert np.linalg.norm(np.asarray(jaw) - tail - np.array([0.0, 0.0, 2e-3])) < 1.5e-3
+        grasper.close()
+        for _ in range(200):
+            scene.step()
+        assert grasper.holding and grasper.held_segment in (0, 1)
+        _reach(scene, "endobot_2", tail + np.array([0.0, 0.0, 0.02]))
+        lifted = scene.suture.centerline()[grasper.held_segment]
+        assert lifted[2] > 0.012
+        grasper.open()
+        for _ in range(200):
+            scene.step()
+        assert not grasper.holding
+        dropped = scene.suture.centerline()[1].copy()
+        _reach(scene, "endobot_2", tail + np.array([0.0, 0.0, 0.04]))
+        # Released, the thread does not rise with the jaws (it relaxes back down).
+        after = scene.suture.centerline()[1]
+        assert after[2] <= dropped[2] + 1e-3
+        assert np.asarray(grasper.pose()[0])[2] - after[2] > 0.02
+    finally:
+        scene.close()
