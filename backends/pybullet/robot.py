@@ -45,8 +45,7 @@ from numpy.typing import NDArray
 from backends.pybullet.sensors import Sensor, SensorModel, SensorReading
 from backends.pybullet.urdf import FT_JOINT, JOINT_NAMES, TOOL_LINK, endobot_urdf
 from suture_engine.errors import SutureError
-from suture_engine.robot import dynamics
-from suture_engine.robot.friction import FrictionModel
+from suture_engine.robot.friction import FrictionModel, friction_levels
 from suture_engine.robot.params import E1, EndoBotParams
 
 __all__ = [
@@ -66,6 +65,33 @@ Vec = Sequence[float] | FloatArray
 _REST_VELOCITY = 1e-7
 """|q̇| below which a joint counts as at rest for static friction [rad/s or m/s]."""
 _PGS_ITERATIONS = 4
+
+
+def _floats(v: Vec) -> list[float]:
+    """Joint values as Python floats (math on them is several times faster than on numpy
+    scalars)."""
+    if type(v) is np.ndarray and v.dtype == np.float64:
+        out: list[float] = v.tolist()
+        return out
+    return [float(x) for x in v]
+
+
+def _joint_solve(v_free: float, w: float, brk: float, slide: float, fv: float) -> float:
+    """Friction torque of one joint in one Gauss-Seidel sweep [N*m or N].
+
+    Args:
+        v_free: the joint's velocity at the end of the step without its own friction
+            [rad/s or m/s].
+        w: h (M⁻¹)_ii, the velocity change per unit torque over the step [(rad/s)/(N*m)].
+        brk: break-away level: friction can hold the joint up to it [N*m or N].
+        slide: sliding (Coulomb and Stribeck) level [N*m or N].
+        fv: viscous coefficient, taken at the end of the step [N*m*s/rad or N*s/m].
+    """
+    if abs(v_free) <= w * brk:
+        return v_free / w  # held: exactly the torque that stops the joint
+    s = 1.0 if v_free > 0.0 else -1.0
+    v = (v_free - w * slide * s) / (1.0 + w * fv)
+    return slide * s + fv * v
 
 
 class SimulationError(SutureError):
@@ -192,13 +218,14 @@ class EndoBotSim:
             physicsClientId=client,
         )
         p.enableJointForceTorqueSensor(self.body_id, self.ft_joint, True, physicsClientId=client)
-        self._base_com = np.array(
-            p.getDynamicsInfo(self.body_id, self.ft_joint, physicsClientId=client)[3]
-        )
+        com = p.getDynamicsInfo(self.body_id, self.ft_joint, physicsClientId=client)[3]
+        self._com: tuple[float, float, float] = (float(com[0]), float(com[1]), float(com[2]))
+        self._measured_joints = [*self.joint_indices, self.ft_joint]
         rng = np.random.default_rng(seed)
         self._encoder = Sensor(encoder or SensorModel(), 4, rng)
         self._ft = Sensor(ft_sensor or SensorModel(), 6, rng)
-        self._limits = np.array([j.motor.max_torque for j in self.params.joints])
+        self._coupled: tuple[Sensor, Sensor] | None = None
+        self._limits = [float(j.motor.max_torque) for j in self.params.joints]
         fr = [j.friction for j in self.params.joints]
         self._fc = [f.coulomb for f in fr]
         self._fv = [0.0 if self.friction_model is FrictionModel.COULOMB else f.viscous for f in fr]
@@ -209,8 +236,8 @@ class EndoBotSim:
             p.getMatrixFromQuaternion(list(base_orientation), physicsClientId=client)
         ).reshape(3, 3)
         self.refresh_gravity()
-        self.last_command = np.zeros(4)
-        self.last_friction = np.zeros(4)
+        self._last_command = [0.0, 0.0, 0.0, 0.0]
+        self._last_friction = [0.0, 0.0, 0.0, 0.0]
         self.reset(q0 if q0 is not None else (0.0, 0.0, 0.0, 0.05))
 
     def __repr__(self) -> str:
@@ -233,7 +260,12 @@ class EndoBotSim:
         self.model_params = dataclasses.replace(
             self.params, gravity=(float(g_base[0]), float(g_base[1]), float(g_base[2]))
         )
-        self._theta = self.model_params.coefficients
+        th = self._theta = self.model_params.coefficients
+        self._gravity = self.model_params.gravity
+        # constants of the per-step friction solve, evaluated as the dynamics functions do
+        self._two_h4 = 2.0 * th.h4
+        self._ml12 = th.ml1 - th.ml2
+        self._w33 = self.dt * (1.0 / th.m4)
 
     def reset(self, q: Vec, qd: Vec | None = None) -> None:
         """Teleport the joints (no dynamics); zero velocity unless given.
@@ -243,32 +275,62 @@ class EndoBotSim:
             qd: velocities [rad/s, rad/s, rad/s, m/s].
         """
         vel = [0.0] * 4 if qd is None else [float(v) for v in qd]
-        self._predicted: list[float] | None = None  # a teleport voids the prediction
+        self._predicted: tuple[float, float, float, float] | None = None  # a teleport voids it
         self._last_state: tuple[list[float], list[float]] = ([], [])
-        self._last_mass: list[list[float]] = []
-        self.external_torque = np.zeros(4)
-        """Estimated unmodelled joint torques of the last step [N*m, ..., N] (contacts,
-        pushes, limits), used by the friction solve."""
+        self._last_mass: tuple[float, float, float, float, float] = (0.0,) * 5
+        self._ext = [0.0, 0.0, 0.0, 0.0]
         for k, j in enumerate(self.joint_indices):
             self._p.resetJointState(
                 self.body_id, j, float(q[k]), vel[k], physicsClientId=self.client
             )
 
-    def true_state(self) -> JointState:
-        """Ground-truth joint positions and velocities (for evaluation, not for skills)."""
+    @property
+    def external_torque(self) -> FloatArray:
+        """Estimated unmodelled joint torques of the last step [N*m, ..., N] (contacts,
+        pushes, limits), used by the friction solve."""
+        return np.array(self._ext)
+
+    @property
+    def last_command(self) -> FloatArray:
+        """The last commanded motor torques, after saturation [N*m, N*m, N*m, N]."""
+        return np.array(self._last_command)
+
+    @property
+    def last_friction(self) -> FloatArray:
+        """The friction torques of the last applied step [N*m, N*m, N*m, N]."""
+        return np.array(self._last_friction)
+
+    def _joint_lists(self) -> tuple[list[float], list[float]]:
+        """Ground-truth (q, q̇) as Python floats, one PyBullet call."""
         states = self._p.getJointStates(
             self.body_id, self.joint_indices, physicsClientId=self.client
         )
-        return JointState(np.array([s[0] for s in states]), np.array([s[1] for s in states]))
+        return [s[0] for s in states], [s[1] for s in states]
+
+    def true_state(self) -> JointState:
+        """Ground-truth joint positions and velocities (for evaluation, not for skills)."""
+        q, qd = self._joint_lists()
+        return JointState(np.array(q), np.array(qd))
+
+    def _wrench_at_rcm(self, raw: Sequence[float]) -> list[float]:
+        """PyBullet's joint reaction (Fx, Fy, Fz, Mx, My, Mz) with the moment moved from
+        the child link's centre of mass to the RCM: M + c × F [N, N*m]."""
+        fx, fy, fz, mx, my, mz = raw
+        cx, cy, cz = self._com
+        # c × F in the operation order of np.cross: products, then their difference
+        return [
+            fx,
+            fy,
+            fz,
+            mx + (cy * fz - cz * fy),
+            my + (cz * fx - cx * fz),
+            mz + (cx * fy - cy * fx),
+        ]
 
     def true_base_wrench(self) -> FloatArray:
         """Ground-truth base wrench (Fx, Fy, Fz [N], Mx, My, Mz [N*m]) in the base frame."""
-        raw = np.array(
-            self._p.getJointState(self.body_id, self.ft_joint, physicsClientId=self.client)[2]
-        )
-        # PyBullet reports the moment about the child link's centre of mass; move it to the RCM.
-        raw[3:] += np.cross(self._base_com, raw[:3])
-        return raw
+        raw = self._p.getJointState(self.body_id, self.ft_joint, physicsClientId=self.client)[2]
+        return np.array(self._wrench_at_rcm(raw))
 
     def true_tool_pose(self) -> tuple[FloatArray, FloatArray]:
         """World position [m] and quaternion (x, y, z, w) of the tool frame (ground truth)."""
@@ -305,54 +367,95 @@ class EndoBotSim:
             Stateful: it also updates the estimate of unmodelled torques from the
             previous step, so call it once per simulation step (``apply`` does).
         """
-        th = self._theta
-        rest = (
-            np.asarray(tau, dtype=float)
-            - dynamics.coriolis_vector(q, qd, th)
-            - dynamics.gravity_vector(q, th, self.model_params.gravity)
-        ).tolist()
+        return np.array(self._friction(_floats(q), _floats(qd), _floats(tau)))
+
+    def _friction(self, q: list[float], qd: list[float], tau: list[float]) -> list[float]:
+        """:meth:`friction_torques` on Python floats (the 1 kHz path).
+
+        M(q) (3.38), its closed-form inverse, C(q, q̇) q̇ (3.40) and G(q) (3.41) are
+        evaluated inline with the operations of :mod:`suture_engine.robot.dynamics`
+        in the same order, so the values are those of the dynamics functions to the
+        bit. Only joints 1 and 3 couple through M⁻¹, so the sums skip the structural
+        zeros (adding a ±0 product never changes a sum that starts at +0) and the
+        projected Gauss-Seidel sweeps iterate on joints 1 and 3 alone (joints 2 and 4
+        are solved exactly by their first sweep).
+        """
+        i1, i2, i3, m4, _ml1, ml2, h4, delta = self._theta
+        gx, gy, gz = self._gravity
         dt = self.dt
-        wl = [[dt * x for x in row] for row in dynamics.mass_matrix_inverse(q, th)]
-        qdl = [float(v) for v in qd]
-        ql = [float(v) for v in q]
-        if self._predicted is not None and (ql, qdl) != self._last_state:
+        q1, q2, _, q4 = q
+        v1, v2, v3, v4 = qd
+        c1, s1 = math.cos(q1), math.sin(q1)
+        c2, s2 = math.cos(q2), math.sin(q2)
+        a = (self._two_h4 + m4 * q4) * q4
+        # C(q, q̇) q̇ from the partials of M (dynamics.coriolis_vector)
+        da = 2.0 * (h4 + m4 * q4)
+        p12 = -2.0 * (delta + a) * s2 * c2
+        p14 = da * c2 * c2
+        p32 = i3 * c2
+        p24 = da
+        # G(q) (dynamics.gravity_vector); G3 = 0
+        w1 = c1 * gy + s1 * gz
+        w2 = gx * c2 + gy * s1 * s2 - gz * c1 * s2
+        w4 = gx * s2 - gy * s1 * c2 + gz * c1 * c2
+        k = ml2 + m4 * q4
+        r0 = tau[0] - (p12 * v1 * v2 + p14 * v1 * v4 + p32 * v2 * v3) - (self._ml12 + k * c2) * w1
+        r1 = tau[1] - (-0.5 * p12 * v1 * v1 - p32 * v1 * v3 + p24 * v2 * v4) - -k * w2
+        r2 = tau[2] - p32 * v1 * v2 - 0.0
+        r3 = tau[3] - -0.5 * (p14 * v1 * v1 + p24 * v2 * v2) - -m4 * w4
+        # M(q) and h M(q)⁻¹ (dynamics.mass_matrix, mass_matrix_inverse)
+        m11 = i1 - delta * s2 * s2 + a * c2 * c2
+        m13 = i3 * s2
+        m22 = i2 + a
+        det = m11 * i3 - m13 * m13
+        w00 = dt * (i3 / det)
+        w02 = dt * (-m13 / det)
+        w11 = dt * (1.0 / m22)
+        w22 = dt * (m11 / det)
+        w33 = self._w33
+        ext = self._ext
+        predicted = self._predicted
+        if predicted is not None and (q, qd) != self._last_state:
             # the last step's unmodelled generalised force: the estimate it already
             # contained plus M (q̇ - q̇_pred) / h (an unchanged state means no step ran)
-            dv = [a - b for a, b in zip(qdl, self._predicted, strict=True)]
-            m_prev = self._last_mass
-            self.external_torque = self.external_torque + np.array(
-                [sum(m_prev[i][j] * dv[j] for j in range(4)) / dt for i in range(4)]
-            )
-        self._last_state = (ql, qdl)
-        self._last_mass = dynamics.mass_matrix(q, th).tolist()
-        ext = self.external_torque.tolist()
-        rest = [r + e for r, e in zip(rest, ext, strict=True)]
-        vf = [qdl[i] + sum(wl[i][j] * rest[j] for j in range(4)) for i in range(4)]
-        static = self.friction_model in (FrictionModel.STATIC, FrictionModel.STRIBECK)
-        stribeck = self.friction_model is FrictionModel.STRIBECK
-        slide: list[float] = []  # sliding friction level per joint (Coulomb + Stribeck)
-        brk: list[float] = []  # largest torque static friction can hold
-        for i in range(4):
-            at_rest = abs(qdl[i]) <= _REST_VELOCITY
-            fc = self._fc[i]
-            if stribeck and not at_rest:
-                fc += (self._fs[i] - fc) * math.exp(-(abs(qdl[i] / self._vs[i]) ** self._ds[i]))
-            slide.append(fc)
-            brk.append(self._fs[i] if (static and at_rest) else fc)
-        tf = [0.0, 0.0, 0.0, 0.0]
+            n11, n13, n22, n33, n44 = self._last_mass
+            d1 = v1 - predicted[0]
+            d2 = v2 - predicted[1]
+            d3 = v3 - predicted[2]
+            d4 = v4 - predicted[3]
+            ext = self._ext = [
+                ext[0] + (0.0 + n11 * d1 + n13 * d3) / dt,
+                ext[1] + (0.0 + n22 * d2) / dt,
+                ext[2] + (0.0 + n13 * d1 + n33 * d3) / dt,
+                ext[3] + (0.0 + n44 * d4) / dt,
+            ]
+        self._last_state = (q, qd)
+        self._last_mass = (m11, m13, m22, i3, m4)
+        r0 += ext[0]
+        r1 += ext[1]
+        r2 += ext[2]
+        r3 += ext[3]
+        f0 = v1 + (0.0 + w00 * r0 + w02 * r2)
+        f1 = v2 + (0.0 + w11 * r1)
+        f2 = v3 + (0.0 + w02 * r0 + w22 * r2)
+        f3 = v4 + (0.0 + w33 * r3)
+        slide, brk = friction_levels(
+            qd, self._fc, self._fs, self._vs, self._ds, self.friction_model, _REST_VELOCITY
+        )
+        fv = self._fv
+        t0 = t2 = 0.0
+        t1 = _joint_solve(f1, w11, brk[1], slide[1], fv[1])
+        t3 = _joint_solve(f3, w33, brk[3], slide[3], fv[3])
         for _ in range(_PGS_ITERATIONS):
-            for i in range(4):
-                wi = wl[i]
-                v_other = vf[i] - sum(wi[j] * tf[j] for j in range(4) if j != i)
-                wii = wi[i]
-                if abs(v_other) <= wii * brk[i]:
-                    tf[i] = v_other / wii  # held: exactly the torque that stops the joint
-                else:
-                    s = 1.0 if v_other > 0.0 else -1.0
-                    v = (v_other - wii * slide[i] * s) / (1.0 + wii * self._fv[i])
-                    tf[i] = slide[i] * s + self._fv[i] * v
-        self._predicted = [vf[i] - sum(wl[i][j] * tf[j] for j in range(4)) for i in range(4)]
-        return np.array(tf)
+            t0 = _joint_solve(f0 - (0.0 + w02 * t2), w00, brk[0], slide[0], fv[0])
+            t2 = _joint_solve(f2 - (0.0 + w02 * t0), w22, brk[2], slide[2], fv[2])
+        self._predicted = (
+            f0 - (0.0 + w00 * t0 + w02 * t2),
+            f1 - (0.0 + w11 * t1),
+            f2 - (0.0 + w02 * t0 + w22 * t2),
+            f3 - (0.0 + w33 * t3),
+        )
+        return [t0, t1, t2, t3]
 
     def apply(self, tau: Vec) -> None:
         """Command joint torques for the next step only (friction added here).
@@ -366,31 +469,58 @@ class EndoBotSim:
         Raises:
             SimulationError: on a wrong shape or a non-finite torque.
         """
-        cmd = np.asarray(tau, dtype=float)
-        if cmd.shape != (4,) or not np.all(np.isfinite(cmd)):
+        if type(tau) is np.ndarray and tau.shape == (4,) and tau.dtype == np.float64:
+            cmd: list[float] = tau.tolist()
+        else:
+            arr = np.asarray(tau, dtype=float)
+            if arr.shape != (4,):
+                raise SimulationError(self.params.name, f"bad torque command {tau!r}")
+            cmd = arr.tolist()
+        # a sum of floats is finite only if every term is (an overflow is re-checked)
+        if not math.isfinite(cmd[0] + cmd[1] + cmd[2] + cmd[3]) and not all(
+            math.isfinite(x) for x in cmd
+        ):
             raise SimulationError(self.params.name, f"bad torque command {tau!r}")
         if self.saturate:
-            cmd = np.clip(cmd, -self._limits, self._limits)
-        self.last_command = cmd
+            cmd = [
+                -lim if x < -lim else (lim if x > lim else x)
+                for x, lim in zip(cmd, self._limits, strict=True)
+            ]
+        self._last_command = cmd
         total = cmd
         if self.friction_enabled:
-            q, qd = self.true_state()
-            self.last_friction = self.friction_torques(q, qd, cmd)
-            total = cmd - self.last_friction
+            q, qd = self._joint_lists()
+            tf = self._last_friction = self._friction(q, qd, cmd)
+            total = [c - f for c, f in zip(cmd, tf, strict=True)]
         self._p.setJointMotorControlArray(
             self.body_id,
             self.joint_indices,
             self._p.TORQUE_CONTROL,
-            forces=total.tolist(),
+            forces=total,
             physicsClientId=self.client,
         )
 
     def measure(self) -> EndoBotMeasurement:
         """Sample the encoders and the base F/T sensor once (one control tick)."""
-        q, _ = self.true_state()
-        return EndoBotMeasurement(
-            self._encoder.measure(q), self._ft.measure(self.true_base_wrench())
+        states = self._p.getJointStates(
+            self.body_id, self._measured_joints, physicsClientId=self.client
         )
+        encoder, ft = self._encoder, self._ft
+        coupled = self._coupled
+        if coupled is None or coupled[0] is not encoder or coupled[1] is not ft:
+            self._couple_sensors(encoder, ft)
+        return EndoBotMeasurement(
+            encoder.measure([s[0] for s in states[:4]]),
+            ft.measure(self._wrench_at_rcm(states[4][2])),
+        )
+
+    def _couple_sensors(self, encoder: Sensor, ft: Sensor) -> None:
+        """Let an ideal sensor skip its random draws when no imperfect sensor reads the
+        same generator after it (the draws then change nothing a run can see)."""
+        shared = encoder.rng is ft.rng
+        encoder.draw_when_ideal = shared and not ft.model.ideal
+        ft.draw_when_ideal = shared and not encoder.model.ideal
+        self._coupled = (encoder, ft)
 
     def step(self, tau: Vec) -> EndoBotMeasurement:
         """Apply torques, advance the client by one 1 ms step, measure.

@@ -28,6 +28,7 @@ from suture_engine.errors import SutureError
 from suture_engine.robot.params import E1, EndoBotParams
 
 __all__ = [
+    "BadSensorInput",
     "InvalidSensorModel",
     "Sensor",
     "SensorModel",
@@ -54,6 +55,22 @@ class InvalidSensorModel(SutureError):
         super().__init__(f"sensor model {field}={value!r}: {reason}")
         self.field = field
         self.value = value
+
+
+class BadSensorInput(SutureError):
+    """True values handed to a sensor with the wrong number of channels.
+
+    Attributes:
+        expected: the sensor's channel count.
+        got: the shape of the values given.
+    """
+
+    code = "bad-sensor-input"
+
+    def __init__(self, expected: int, got: tuple[int, ...]) -> None:
+        super().__init__(f"sensor of {expected} channels given values of shape {got}")
+        self.expected = expected
+        self.got = got
 
 
 class SensorReading(NamedTuple):
@@ -117,16 +134,30 @@ def _broadcast(v: Channels, n: int, name: str) -> FloatArray:
 class Sensor:
     """A stateful sensor applying a :class:`SensorModel` tick by tick.
 
+    An ideal sensor returns the truth as floats (``+ 0.0``, as the general path's
+    zero bias and noise do: -0.0 reads 0.0). It still draws its variates unless
+    ``draw_when_ideal`` is False, which its owner may set when no other sensor reads
+    the same generator (the draws then change nothing a run can see).
+
     Args:
         model: the imperfections.
         channels: number of channels.
         rng: the seeded generator this sensor draws from.
+        draw_when_ideal: draw the tick's variates even when the model is ideal.
     """
 
-    def __init__(self, model: SensorModel, channels: int, rng: np.random.Generator) -> None:
-        self.model = model
+    def __init__(
+        self,
+        model: SensorModel,
+        channels: int,
+        rng: np.random.Generator,
+        draw_when_ideal: bool = True,
+    ) -> None:
+        self._model = model
         self.channels = channels
+        self.draw_when_ideal = draw_when_ideal
         self._rng = rng
+        self._ideal = model.ideal
         self._res = _broadcast(model.resolution, channels, "resolution")
         self._std = _broadcast(model.noise_std, channels, "noise_std")
         self._bias = _broadcast(model.bias, channels, "bias")
@@ -137,6 +168,16 @@ class Sensor:
     def __repr__(self) -> str:
         return f"Sensor(channels={self.channels}, model={self.model!r})"
 
+    @property
+    def model(self) -> SensorModel:
+        """The imperfections (fixed for the sensor's life)."""
+        return self._model
+
+    @property
+    def rng(self) -> np.random.Generator:
+        """The generator this sensor draws from (possibly shared with other sensors)."""
+        return self._rng
+
     def measure(self, truth: Sequence[float] | FloatArray) -> SensorReading:
         """Sample the sensor once per control tick.
 
@@ -146,11 +187,22 @@ class Sensor:
         Returns:
             The reading (delayed, biased, noisy, quantised, possibly held).
         """
+        if self._ideal:
+            if self.draw_when_ideal:
+                self._rng.standard_normal(self.channels)
+                self._rng.random()
+            ideal = np.array(truth, dtype=float)
+            ideal += 0.0
+            if ideal.shape != (self.channels,):
+                raise BadSensorInput(self.channels, ideal.shape)
+            tick = self._tick
+            self._tick += 1
+            return SensorReading(ideal, True, tick)
         true = np.array(truth, dtype=float)
         self._buffer.append(true)
         delayed = self._buffer[0]  # the oldest kept sample = delay_ticks ago (or the first)
         noise = self._rng.standard_normal(self.channels)
-        lost = self._rng.random() < self.model.dropout
+        lost = self._rng.random() < self._model.dropout
         value = delayed + self._bias + self._std * noise
         step = self._res > 0.0
         if step.any():

@@ -22,7 +22,7 @@ from numpy.typing import NDArray
 
 from suture_engine.robot.params import FrictionParams
 
-__all__ = ["FrictionModel", "friction_torque", "joint_friction"]
+__all__ = ["FrictionModel", "friction_levels", "friction_torque", "joint_friction"]
 
 FloatArray = NDArray[np.float64]
 
@@ -74,6 +74,55 @@ def joint_friction(
         -(abs(qd / p.stribeck_velocity) ** p.stribeck_exponent)
     )
     return (p.coulomb + stribeck) * _sgn(qd) + p.viscous * qd
+
+
+def friction_levels(
+    qd: Sequence[float],
+    coulomb: Sequence[float],
+    static: Sequence[float],
+    stribeck_velocity: Sequence[float],
+    stribeck_exponent: Sequence[float],
+    model: FrictionModel,
+    rest_velocity: float,
+) -> tuple[Sequence[float], Sequence[float]]:
+    """Sliding and break-away friction levels of all joints at once, (3.42)-(3.45).
+
+    The two magnitudes a time-stepping friction solve needs (the simulated
+    robot's): a joint in motion feels the sliding level opposing it (plus its
+    viscous term, not included here); a joint at rest stays at rest while the
+    torque on it is within the break-away level.
+
+    Args:
+        qd: joint velocities [rad/s, ..., m/s] as Python floats.
+        coulomb: Fc per joint [N*m, ..., N].
+        static: Fs per joint [N*m, ..., N].
+        stribeck_velocity: q̇s per joint [rad/s, ..., m/s].
+        stribeck_exponent: δs per joint [-].
+        model: which of the models a-d.
+        rest_velocity: |q̇| at or below which a joint counts as at rest [rad/s or m/s].
+
+    Returns:
+        (slide, brk): slide_i = Fc, plus (Fs - Fc) e^{-|q̇/q̇s|^δs} (3.45) for a
+        moving joint under model d; brk_i = Fs at rest under models c and d (3.44),
+        else slide_i. For models a and b both are ``coulomb`` itself (not a copy).
+    """
+    if model is FrictionModel.COULOMB or model is FrictionModel.COULOMB_VISCOUS:
+        return coulomb, coulomb
+    slide: list[float] = []
+    brk: list[float] = []
+    stribeck = model is FrictionModel.STRIBECK
+    for v, fc, fs, vs, ds in zip(
+        qd, coulomb, static, stribeck_velocity, stribeck_exponent, strict=True
+    ):
+        if abs(v) <= rest_velocity:
+            slide.append(fc)
+            brk.append(fs)
+        else:
+            if stribeck:
+                fc += (fs - fc) * math.exp(-(abs(v / vs) ** ds))
+            slide.append(fc)
+            brk.append(fc)
+    return slide, brk
 
 
 def friction_torque(
