@@ -377,3 +377,21 @@ def test_suture_stiffness_options_reach_the_thread() -> None:
         assert be.scene.suture.params.bending_stiffness == pytest.approx(1.2e-6)
     finally:
         be.close()
+
+
+def test_ground_truth_is_read_on_look_up_and_matches_the_simulator() -> None:
+    """The lazy ground truth gives the same values as reading the simulator directly, and
+    only the keys asked for are computed."""
+    be = SurgicalPyBulletBackend()
+    try:
+        be.reset(load_procedure(BENCH).scene, 0)
+        assert be.scene is not None
+        truth = be.ground_truth()
+        assert set(truth) == {"endobot_1/tool_tip", "endobot_2/tool_tip", "centerline", "tension_N"}
+        assert np.allclose(truth["centerline"], be.scene.suture.centerline())
+        assert truth["tension_N"] == pytest.approx(float(be.scene.suture.tensions().max()))
+        tip, _ = be.robots["endobot_1"].true_tool_pose()
+        assert np.allclose(truth["endobot_1/tool_tip"], tip)
+        assert set(truth._values) == {"centerline", "tension_N", "endobot_1/tool_tip"}
+    finally:
+        be.close()

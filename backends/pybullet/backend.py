@@ -21,8 +21,9 @@ The plain ``pybullet`` backend holds the robots alone.
 
 from __future__ import annotations
 
+import functools
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping
 from typing import Any
 
 import numpy as np
@@ -74,6 +75,33 @@ def _quaternion(rpy: tuple[float, float, float]) -> tuple[float, float, float, f
         cr * cp * sy - sr * sp * cy,
         cr * cp * cy + sr * sp * sy,
     )
+
+
+def _tool_tip(sim: Any) -> Any:
+    return sim.true_tool_pose()[0]
+
+
+def _largest(values: Any) -> float:
+    return float(values.max()) if len(values) else 0.0
+
+
+class _LazyTruth(Mapping[str, Any]):
+    """A read-only mapping whose values are computed on first look-up, then kept."""
+
+    def __init__(self, getters: dict[str, Callable[[], Any]]) -> None:
+        self._getters = getters
+        self._values: dict[str, Any] = {}
+
+    def __getitem__(self, key: str) -> Any:
+        if key not in self._values:
+            self._values[key] = self._getters[key]()
+        return self._values[key]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._getters)
+
+    def __len__(self) -> int:
+        return len(self._getters)
 
 
 class PyBulletBackend:
@@ -483,17 +511,19 @@ class PyBulletBackend:
     def ground_truth(self) -> Mapping[str, Any]:
         """True tool-tip positions [m] and, with the surgical scene, the thread's
         ``centerline`` [m] and ``tension_N`` (its largest segment tension [N]).
-        Evaluation and traces only."""
-        out: dict[str, Any] = {}
+        Evaluation and traces only.
+
+        Each value is read from the simulator when it is first looked up (and kept), so a
+        caller pays only for what it reads: look values up before the next :meth:`step`.
+        """
+        getters: dict[str, Callable[[], Any]] = {}
         for name, sim in self.robots.items():
-            tip, _ = sim.true_tool_pose()
-            out[f"{name}/tool_tip"] = tip
+            getters[f"{name}/tool_tip"] = functools.partial(_tool_tip, sim)
         if self.scene is not None:
             suture = self.scene.suture
-            out["centerline"] = suture.centerline()
-            tensions = suture.tensions()
-            out["tension_N"] = float(tensions.max()) if len(tensions) else 0.0
-        return out
+            getters["centerline"] = suture.centerline
+            getters["tension_N"] = lambda: _largest(suture.tensions())
+        return _LazyTruth(getters)
 
     def close(self) -> None:
         """Disconnect; idempotent."""
