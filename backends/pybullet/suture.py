@@ -591,7 +591,10 @@ class Suture:
         """
         import pybullet as p
 
-        pos, _ = self._poses()
+        c = self.client
+        pos = np.array(
+            [p.getBasePositionAndOrientation(b, physicsClientId=c)[0] for b in self.bodies]
+        )
         u = np.diff(pos, axis=0)
         u /= np.linalg.norm(u, axis=1, keepdims=True)
         force = np.array(
