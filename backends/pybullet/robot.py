@@ -443,12 +443,13 @@ class EndoBotSim:
             qd, self._fc, self._fs, self._vs, self._ds, self.friction_model, _REST_VELOCITY
         )
         fv = self._fv
-        t0 = t2 = 0.0
         t1 = _joint_solve(f1, w11, brk[1], slide[1], fv[1])
         t3 = _joint_solve(f3, w33, brk[3], slide[3], fv[3])
+        b0, s0, fv0, b2, s2_, fv2 = brk[0], slide[0], fv[0], brk[2], slide[2], fv[2]
+        t0 = t2 = 0.0
         for _ in range(_PGS_ITERATIONS):
-            t0 = _joint_solve(f0 - (0.0 + w02 * t2), w00, brk[0], slide[0], fv[0])
-            t2 = _joint_solve(f2 - (0.0 + w02 * t0), w22, brk[2], slide[2], fv[2])
+            t0 = _joint_solve(f0 - (0.0 + w02 * t2), w00, b0, s0, fv0)
+            t2 = _joint_solve(f2 - (0.0 + w02 * t0), w22, b2, s2_, fv2)
         self._predicted = (
             f0 - (0.0 + w00 * t0 + w02 * t2),
             f1 - (0.0 + w11 * t1),

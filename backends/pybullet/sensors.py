@@ -161,6 +161,9 @@ class Sensor:
         self._res = _broadcast(model.resolution, channels, "resolution")
         self._std = _broadcast(model.noise_std, channels, "noise_std")
         self._bias = _broadcast(model.bias, channels, "bias")
+        step = self._res > 0.0
+        self._quantised = step if step.any() else None
+        self._noise = np.empty(channels)  # this tick's Gaussian draws
         self._buffer: deque[FloatArray] = deque(maxlen=model.delay_ticks + 1)
         self._last: FloatArray | None = None
         self._tick = 0
@@ -189,7 +192,7 @@ class Sensor:
         """
         if self._ideal:
             if self.draw_when_ideal:
-                self._rng.standard_normal(self.channels)
+                self._rng.standard_normal(out=self._noise)
                 self._rng.random()
             ideal = np.array(truth, dtype=float)
             ideal += 0.0
@@ -199,14 +202,16 @@ class Sensor:
             self._tick += 1
             return SensorReading(ideal, True, tick)
         true = np.array(truth, dtype=float)
+        if true.shape != (self.channels,):
+            raise BadSensorInput(self.channels, true.shape)
         self._buffer.append(true)
         delayed = self._buffer[0]  # the oldest kept sample = delay_ticks ago (or the first)
-        noise = self._rng.standard_normal(self.channels)
+        noise = self._rng.standard_normal(out=self._noise)
         lost = self._rng.random() < self._model.dropout
         value = delayed + self._bias + self._std * noise
-        step = self._res > 0.0
-        if step.any():
-            value[step] = np.round(value[step] / self._res[step]) * self._res[step]
+        if self._quantised is not None:
+            res = self._res[self._quantised]
+            value[self._quantised] = np.round(value[self._quantised] / res) * res
         tick = self._tick
         self._tick += 1
         if lost and self._last is not None:
