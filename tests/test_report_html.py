@@ -144,3 +144,17 @@ def test_chromium_screenshot_shows_the_figures(
     saturated = (px.max(axis=-1) - px.min(axis=-1)) > 0.35
     rows = np.nonzero(saturated.any(axis=1))[0]
     assert rows.size > 50, "no coloured figure pixels in the screenshot"
+
+
+def test_one_knot_entry_per_stitch_is_shown(tmp_path: Path) -> None:
+    import json
+
+    trace = write_known_trace(tmp_path / "trace.mcap", knot=False)
+    knots = [{"type": "square", "determinant": 9}, {"type": "granny", "determinant": 9}]
+    (tmp_path / "summary.json").write_text(json.dumps({"knot": knots}), encoding="utf-8")
+    info = knot_info(load_trace(trace), classify=False)
+    assert info.source.startswith("summary.json")
+    assert info.fields["stitch 1 type"] == "square"
+    assert info.fields["stitch 2 type"] == "granny"
+    html = build_report(load_trace(trace), figures=[])
+    assert "stitch 2 type" in html and "granny" in html

@@ -292,3 +292,11 @@ def test_sigint_stops_the_sweep_and_resume_runs_only_the_rest(tmp_path: Path) ->
     result = run_sweep(_config(3, vary=[vary]), out, runner=runner)
     assert sorted(asked) == sorted(set(range(3)) - set(finished))
     assert sorted(r.run for r in result.rows) == [0, 1, 2]
+
+
+def test_knot_type_of_one_knot_and_of_one_per_stitch() -> None:
+    from suture_engine.report.sweep import _knot_type
+
+    assert _knot_type({"type": "square"}) == "square"
+    assert _knot_type([{"type": "square"}, {"type": "unknot"}, {}]) == "square+unknot+?"
+    assert _knot_type(None) == ""

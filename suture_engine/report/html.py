@@ -69,6 +69,15 @@ def knot_info(data: TraceData, classify: bool = True) -> KnotInfo:
         return KnotInfo(channels.GROUND_TRUTH_KNOT, dict(knots[-1][1]))
     if data.summary and isinstance(data.summary.get("knot"), dict):
         return KnotInfo("summary.json", dict(data.summary["knot"]))
+    if data.summary and isinstance(data.summary.get("knot"), list):
+        # one entry per stitch (a multi-stitch procedure): "stitch N <field>" rows
+        fields = {
+            f"stitch {i} {key}": value
+            for i, entry in enumerate(data.summary["knot"], 1)
+            if isinstance(entry, dict)
+            for key, value in entry.items()
+        }
+        return KnotInfo("summary.json (one entry per stitch)", fields)
     lines = data.get(channels.GROUND_TRUTH_SUTURE)
     if classify and lines and isinstance(lines[-1][1], dict):
         from suture_engine.errors import SutureError

@@ -378,12 +378,21 @@ def run_job(job: RunJob) -> RunRow:
     if str(s.metrics.get("stopped", "")).startswith("interrupted"):
         # Ctrl-C reached the run: it did not finish, so it must not count as done.
         raise KeyboardInterrupt
-    knot = s.knot.get("type", "") if isinstance(s.knot, Mapping) else ""
+    knot = _knot_type(s.knot)
     return RunRow(
         job.run, job.seed, dict(job.values), "", s.outcome, s.final_state, str(knot or ""),
         float(s.max_tension_N), float(s.sim_time_s), float(s.wall_time_s), int(s.retries),
         len(s.violations), "",
     )  # fmt: skip
+
+
+def _knot_type(knot: object) -> str:
+    """The run's knot type: ``type`` of one knot, the types joined by ``+`` for one per stitch."""
+    if isinstance(knot, Mapping):
+        return str(knot.get("type", "") or "")
+    if isinstance(knot, list):
+        return "+".join(str(k.get("type", "") or "?") for k in knot if isinstance(k, Mapping))
+    return ""
 
 
 # -- results.csv ----------------------------------------------------------------------------
