@@ -13,9 +13,9 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from backends.pybullet.robot import EndoBotSim, SimulationError
-from backends.pybullet.sensors import encoder_model, ft_sensor_model
+from backends.pybullet.sensors import Sensor, SensorModel, encoder_model, ft_sensor_model
 from backends.pybullet.urdf import endobot_urdf
-from suture_engine.robot import endobot
+from suture_engine.robot import dynamics, endobot
 from suture_engine.robot.params import E1, E2
 
 angle = st.floats(-1.0, 1.0)
@@ -276,3 +276,166 @@ def test_torque_saturates_at_the_motor_limit(client: int) -> None:
     sim.apply([100.0, -100.0, 0.0, 0.0])
     assert sim.last_command[0] == pytest.approx(E1.joints[0].motor.max_torque)
     assert sim.last_command[1] == pytest.approx(-E1.joints[1].motor.max_torque)
+
+
+class _ReferenceFriction:
+    """The friction solve as first written (numpy dynamics, full 4x4 sweeps): the oracle
+    the per-tick float path must reproduce."""
+
+    def __init__(self, sim: EndoBotSim, model: str) -> None:
+        self.th = sim.model_params.coefficients
+        self.g = sim.model_params.gravity
+        self.dt = sim.dt
+        fr = [j.friction for j in sim.params.joints]
+        self.fc = [f.coulomb for f in fr]
+        self.fv = [0.0 if model == "a" else f.viscous for f in fr]
+        self.fs = [f.static for f in fr]
+        self.vs = [f.stribeck_velocity for f in fr]
+        self.ds = [f.stribeck_exponent for f in fr]
+        self.static = model in ("c", "d")
+        self.stribeck = model == "d"
+        self.reset()
+
+    def reset(self) -> None:
+        self.predicted: list[float] | None = None
+        self.last_state: tuple[list[float], list[float]] = ([], [])
+        self.last_mass: list[list[float]] = []
+        self.external = np.zeros(4)
+
+    def __call__(self, q: np.ndarray, qd: np.ndarray, tau: np.ndarray) -> np.ndarray:
+        th, dt = self.th, self.dt
+        rest = (
+            tau - dynamics.coriolis_vector(q, qd, th) - dynamics.gravity_vector(q, th, self.g)
+        ).tolist()
+        wl = [[dt * x for x in row] for row in dynamics.mass_matrix_inverse(q, th)]
+        ql, qdl = q.tolist(), qd.tolist()
+        if self.predicted is not None and (ql, qdl) != self.last_state:
+            dv = [a - b for a, b in zip(qdl, self.predicted, strict=True)]
+            m = self.last_mass
+            self.external = self.external + np.array(
+                [sum(m[i][j] * dv[j] for j in range(4)) / dt for i in range(4)]
+            )
+        self.last_state = (ql, qdl)
+        self.last_mass = dynamics.mass_matrix(q, th).tolist()
+        rest = [r + e for r, e in zip(rest, self.external.tolist(), strict=True)]
+        vf = [qdl[i] + sum(wl[i][j] * rest[j] for j in range(4)) for i in range(4)]
+        slide, brk = [], []
+        for i in range(4):
+            at_rest = abs(qdl[i]) <= 1e-7
+            fc = self.fc[i]
+            if self.stribeck and not at_rest:
+                fc += (self.fs[i] - fc) * math.exp(-(abs(qdl[i] / self.vs[i]) ** self.ds[i]))
+            slide.append(fc)
+            brk.append(self.fs[i] if (self.static and at_rest) else fc)
+        tf = [0.0] * 4
+        for _ in range(4):
+            for i in range(4):
+                v_other = vf[i] - sum(wl[i][j] * tf[j] for j in range(4) if j != i)
+                wii = wl[i][i]
+                if abs(v_other) <= wii * brk[i]:
+                    tf[i] = v_other / wii
+                else:
+                    s = 1.0 if v_other > 0.0 else -1.0
+                    v = (v_other - wii * slide[i] * s) / (1.0 + wii * self.fv[i])
+                    tf[i] = slide[i] * s + self.fv[i] * v
+        self.predicted = [vf[i] - sum(wl[i][j] * tf[j] for j in range(4)) for i in range(4)]
+        return np.array(tf)
+
+
+@pytest.mark.parametrize("model", ["a", "b", "c", "d"])
+def test_friction_solve_matches_the_reference_solve(client: int, model: str) -> None:
+    """Tracking, holding below break-away, a push on the tool and a teleport, on a tilted
+    base: the friction torques and the unmodelled-torque estimate equal the reference
+    solve's (same inputs every step) to 1e-12, and both solve branches run."""
+    sim = EndoBotSim(client, E2, base_orientation=TILTED, friction_model=model, saturate=False)
+    ref = _ReferenceFriction(sim, model)
+    fs = np.array([j.friction.static for j in E2.joints])
+    held = slid = 0
+    for k in range(700):
+        q, qd = sim.true_state()
+        grav = endobot.gravity_vector(q, sim.model_params)
+        if k == 350:
+            sim.reset([0.1, 0.4, -0.2, 0.08])  # a teleport voids the prediction
+            ref.reset()
+            q, qd = sim.true_state()
+            grav = endobot.gravity_vector(q, sim.model_params)
+        if k % 350 < 120:  # hold: a load below static friction
+            tau = grav + 0.8 * fs * np.array([1.0, -1.0, 1.0, -1.0])
+        else:  # track a moving target
+            t = k * sim.dt
+            target = np.array([0.3 * math.sin(4 * t), 0.2 * math.sin(5 * t), math.sin(3 * t), 0.06])
+            tau = grav + np.array([3.0, 3.0, 0.3, 80.0]) * (target - q) - 0.02 * qd
+        if 200 <= k < 260:
+            pos, _ = sim.true_tool_pose()
+            p.applyExternalForce(
+                sim.body_id, sim.tool_link, [0.4, -0.3, 0.2], pos.tolist(), p.WORLD_FRAME,
+                physicsClientId=client,
+            )  # fmt: skip
+        sim.apply(tau)
+        expected = ref(q, qd, tau)
+        np.testing.assert_allclose(sim.last_friction, expected, rtol=0.0, atol=1e-12)
+        np.testing.assert_allclose(sim.external_torque, ref.external, rtol=0.0, atol=1e-12)
+        p.stepSimulation(physicsClientId=client)
+        qd_after = sim.true_state().qd
+        held += int(np.sum((np.abs(qd_after) <= 1e-9) & (np.abs(expected) > 0.0)))
+        slid += int(np.sum(np.abs(qd_after) > 1e-4))
+    assert held > 100 and slid > 100
+    assert np.abs(ref.external).max() > 0.0 or model == "a"
+
+
+@given(joints, velocities)
+def test_base_wrench_is_the_reaction_moved_to_the_rcm(
+    tilted: tuple[int, EndoBotSim], q: np.ndarray, qd: np.ndarray
+) -> None:
+    """M + c × F with the previous np.cross computation, and what the ideal sensors read."""
+    cid, sim = tilted
+    sim.reset(q, qd)
+    sim.apply([0.1, -0.05, 0.02, 0.3])
+    p.stepSimulation(physicsClientId=cid)
+    raw = np.array(p.getJointState(sim.body_id, sim.ft_joint, physicsClientId=cid)[2])
+    com = np.array(p.getDynamicsInfo(sim.body_id, sim.ft_joint, physicsClientId=cid)[3])
+    expected = np.concatenate([raw[:3], raw[3:] + np.cross(com, raw[:3])])
+    np.testing.assert_array_equal(sim.true_base_wrench(), expected)
+    m = sim.measure()
+    np.testing.assert_array_equal(m.base_wrench.values, expected + 0.0)
+    np.testing.assert_array_equal(m.joints.values, sim.true_state().q + 0.0)
+
+
+def test_apply_checks_floats_like_numpy(client: int) -> None:
+    sim = EndoBotSim(client, E1, friction=False)
+    lim = np.array([j.motor.max_torque for j in E1.joints])
+    for tau in ([0.5, -0.5, 0.01, -40.0], np.array([1e308, 1e308, 0.0, 0.0]), [-0.0, 0, 1, 2]):
+        sim.apply(tau)  # an overflowing sum of finite torques is no error
+        np.testing.assert_array_equal(sim.last_command, np.clip(np.asarray(tau, float), -lim, lim))
+    sim.apply(np.array([0.1, 0.2, 0.3, 0.4], dtype=np.float32))
+    np.testing.assert_array_equal(sim.last_command, np.array([0.1, 0.2, 0.3, 0.4], np.float32))
+    for bad in ([math.inf, 0.0, 0.0, 0.0], [0.0, -math.inf, 0.0, math.inf], np.zeros((2, 2))):
+        with pytest.raises(SimulationError):
+            sim.apply(bad)
+
+
+def test_ideal_sensors_skip_draws_only_when_no_one_can_see_them(client: int) -> None:
+    """Noisy F/T on the encoders' generator: both draw, so the F/T noise is the seeded
+    stream's (normals for 4 encoder channels, a dropout uniform, 6 F/T normals, a
+    uniform per tick). All ideal, or the F/T on its own generator: no ideal draws."""
+    std = np.array([0.05, 0.05, 0.05, 0.0, 0.0, 0.0])
+    noisy = SensorModel(noise_std=tuple(std.tolist()))
+    sim = EndoBotSim(client, E1, ft_sensor=noisy, seed=11)
+    stream = np.random.default_rng(11)
+    for _ in range(5):
+        sim.apply(endobot.gravity_vector(sim.true_state().q, sim.model_params))
+        p.stepSimulation(physicsClientId=client)
+        truth = sim.true_base_wrench()
+        m = sim.measure()
+        stream.standard_normal(4)
+        stream.random()
+        noise = stream.standard_normal(6)
+        stream.random()
+        np.testing.assert_array_equal(m.base_wrench.values, truth + 0.0 + std * noise)
+    assert sim._encoder.draw_when_ideal and not sim._ft.draw_when_ideal
+    sim._ft = Sensor(noisy, 6, np.random.default_rng(1))  # as the backend swaps it
+    sim.measure()
+    assert not sim._encoder.draw_when_ideal
+    quiet = EndoBotSim(client, E1, seed=11)
+    quiet.measure()
+    assert not quiet._encoder.draw_when_ideal and not quiet._ft.draw_when_ideal

@@ -10,7 +10,7 @@ from hypothesis import given
 from hypothesis import strategies as st
 
 from suture_engine.robot import endobot
-from suture_engine.robot.friction import FrictionModel, joint_friction
+from suture_engine.robot.friction import FrictionModel, friction_levels, joint_friction
 from suture_engine.robot.params import E1, FrictionParams, InvalidParameters
 
 P = FrictionParams(coulomb=0.1, viscous=0.05, static=0.15, stribeck_velocity=0.02)
@@ -62,3 +62,29 @@ def test_invalid_friction_parameters_are_typed_errors() -> None:
     assert err.value.name == "static"
     with pytest.raises(InvalidParameters):
         FrictionParams(coulomb=-0.1, viscous=0.1, static=0.1)
+
+
+@pytest.mark.parametrize("model", list(FrictionModel))
+def test_friction_levels_agree_with_the_single_joint_models(model: FrictionModel) -> None:
+    """In motion a joint feels slide sgn(q̇) + Fv q̇; at rest it holds up to brk."""
+    joints = [j.friction for j in E1.joints] + [P]
+    velocities = [0.3, -0.004, 0.0, 5e-8, -2e-3]
+    slide, brk = friction_levels(
+        velocities,
+        [f.coulomb for f in joints],
+        [f.static for f in joints],
+        [f.stribeck_velocity for f in joints],
+        [f.stribeck_exponent for f in joints],
+        model,
+        1e-7,
+    )
+    for v, f, sl, br in zip(velocities, joints, slide, brk, strict=True):
+        viscous = 0.0 if model is FrictionModel.COULOMB else f.viscous
+        if abs(v) > 1e-7:
+            expected = joint_friction(v, f, model)
+            assert sl * math.copysign(1.0, v) + viscous * v == pytest.approx(expected, abs=1e-15)
+            assert br == sl
+        else:
+            assert sl == f.coulomb
+            static = model in (FrictionModel.STATIC, FrictionModel.STRIBECK)
+            assert br == (joint_friction(0.0, f, model, tau_applied=1e3) if static else sl)

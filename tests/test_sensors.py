@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from backends.pybullet.sensors import (
+    BadSensorInput,
     InvalidSensorModel,
     Sensor,
     SensorModel,
@@ -84,3 +85,70 @@ def test_invalid_models_are_typed_errors() -> None:
         SensorModel(noise_std=-1.0)
     with pytest.raises(InvalidSensorModel):
         Sensor(SensorModel(bias=(1.0, 2.0)), 4, np.random.default_rng(0))
+
+
+class _ReferenceSensor:
+    """The sensor as first written (one numpy path for every model): the oracle."""
+
+    def __init__(self, model: SensorModel, n: int, rng: np.random.Generator) -> None:
+        self.model, self.n, self.rng = model, n, rng
+        self.res = np.broadcast_to(np.array(model.resolution, float), n)
+        self.std = np.broadcast_to(np.array(model.noise_std, float), n)
+        self.bias = np.broadcast_to(np.array(model.bias, float), n)
+        self.buf: list[np.ndarray] = []
+        self.last: np.ndarray | None = None
+
+    def measure(self, truth: np.ndarray) -> tuple[np.ndarray, bool]:
+        self.buf = ([*self.buf, np.array(truth, float)])[-(self.model.delay_ticks + 1) :]
+        noise = self.rng.standard_normal(self.n)
+        lost = self.rng.random() < self.model.dropout
+        value = self.buf[0] + self.bias + self.std * noise
+        step = self.res > 0.0
+        if step.any():
+            value[step] = np.round(value[step] / self.res[step]) * self.res[step]
+        if lost and self.last is not None:
+            return self.last.copy(), False
+        self.last = value
+        return value.copy(), True
+
+
+@pytest.mark.parametrize(
+    "model",
+    [
+        SensorModel(),
+        SensorModel(noise_std=(0.02, 0.02, 0.02, 0.0, 0.0, 0.0), delay_ticks=2),
+        SensorModel(resolution=0.05, bias=(0.1, -0.2, 0.0, 0.0, 1.0, 2.0), dropout=0.2),
+        SensorModel(resolution=(0.0, 0.01, 0.0, 1e-3, 0.0, 0.5), noise_std=0.3, delay_ticks=1),
+    ],
+)
+def test_readings_equal_the_reference_sensor_to_the_bit(model: SensorModel) -> None:
+    """Signed zeros and small negatives included (quantised -0.01 reads -0.0)."""
+    truth = np.random.default_rng(4).normal(scale=0.1, size=(400, 6))
+    truth[::5] = -0.0
+    truth[1::9] = -0.004
+    ref = _ReferenceSensor(model, 6, np.random.default_rng(9))
+    sensor = Sensor(model, 6, np.random.default_rng(9))
+    for k, t in enumerate(truth):
+        values, fresh = ref.measure(t)
+        reading = sensor.measure(t.tolist() if k % 2 else t)
+        assert reading.values.tobytes() == values.tobytes()
+        assert reading.fresh == fresh and reading.tick == k
+
+
+def test_an_ideal_sensor_draws_unless_told_it_need_not() -> None:
+    """The draws keep a generator shared with an imperfect sensor on its stream."""
+    for draw in (True, False):
+        rng, twin = np.random.default_rng(2), np.random.default_rng(2)
+        s = Sensor(SensorModel(), 3, rng, draw_when_ideal=draw)
+        assert s.measure([1.0, -0.0, 2.0]).values.tolist() == [1.0, 0.0, 2.0]
+        if draw:
+            twin.standard_normal(3)
+            twin.random()
+        assert rng.random() == twin.random()
+
+
+def test_wrong_channel_count_is_a_typed_error() -> None:
+    for model in (SensorModel(), SensorModel(noise_std=0.1)):
+        with pytest.raises(BadSensorInput) as err:
+            Sensor(model, 4, np.random.default_rng(0)).measure([1.0, 2.0, 3.0])
+        assert err.value.expected == 4 and err.value.got == (3,)
