@@ -232,6 +232,10 @@ class EndoBotSim:
         self._fs = [f.static for f in fr]
         self._vs = [f.stribeck_velocity for f in fr]
         self._ds = [f.stribeck_exponent for f in fr]
+        self._moving_levels_only = self.friction_model in (
+            FrictionModel.COULOMB,
+            FrictionModel.COULOMB_VISCOUS,
+        )
         self._base_rot = np.array(
             p.getMatrixFromQuaternion(list(base_orientation), physicsClientId=client)
         ).reshape(3, 3)
@@ -439,17 +443,35 @@ class EndoBotSim:
         f1 = v2 + (0.0 + w11 * r1)
         f2 = v3 + (0.0 + w02 * r0 + w22 * r2)
         f3 = v4 + (0.0 + w33 * r3)
-        slide, brk = friction_levels(
-            qd, self._fc, self._fs, self._vs, self._ds, self.friction_model, _REST_VELOCITY
-        )
+        slide: Sequence[float]
+        brk: Sequence[float]
+        if self._moving_levels_only:  # models a and b: both levels are Fc
+            slide = brk = self._fc
+        else:
+            slide, brk = friction_levels(
+                qd, self._fc, self._fs, self._vs, self._ds, self.friction_model, _REST_VELOCITY
+            )
         fv = self._fv
         t1 = _joint_solve(f1, w11, brk[1], slide[1], fv[1])
         t3 = _joint_solve(f3, w33, brk[3], slide[3], fv[3])
+        # joints 1 and 3: the sweeps of _joint_solve, inline (the hot loop)
         b0, s0, fv0, b2, s2_, fv2 = brk[0], slide[0], fv[0], brk[2], slide[2], fv[2]
+        h0, h2 = w00 * b0, w22 * b2
+        k0, k2 = 1.0 + w00 * fv0, 1.0 + w22 * fv2
         t0 = t2 = 0.0
         for _ in range(_PGS_ITERATIONS):
-            t0 = _joint_solve(f0 - (0.0 + w02 * t2), w00, b0, s0, fv0)
-            t2 = _joint_solve(f2 - (0.0 + w02 * t0), w22, b2, s2_, fv2)
+            v = f0 - (0.0 + w02 * t2)
+            if abs(v) <= h0:
+                t0 = v / w00
+            else:
+                s = 1.0 if v > 0.0 else -1.0
+                t0 = s0 * s + fv0 * ((v - w00 * s0 * s) / k0)
+            v = f2 - (0.0 + w02 * t0)
+            if abs(v) <= h2:
+                t2 = v / w22
+            else:
+                s = 1.0 if v > 0.0 else -1.0
+                t2 = s2_ * s + fv2 * ((v - w22 * s2_ * s) / k2)
         self._predicted = (
             f0 - (0.0 + w00 * t0 + w02 * t2),
             f1 - (0.0 + w11 * t1),
@@ -477,22 +499,23 @@ class EndoBotSim:
             if arr.shape != (4,):
                 raise SimulationError(self.params.name, f"bad torque command {tau!r}")
             cmd = arr.tolist()
+        c0, c1, c2, c3 = cmd
         # a sum of floats is finite only if every term is (an overflow is re-checked)
-        if not math.isfinite(cmd[0] + cmd[1] + cmd[2] + cmd[3]) and not all(
-            math.isfinite(x) for x in cmd
-        ):
+        if not math.isfinite(c0 + c1 + c2 + c3) and not all(math.isfinite(x) for x in cmd):
             raise SimulationError(self.params.name, f"bad torque command {tau!r}")
-        if self.saturate:
-            cmd = [
-                -lim if x < -lim else (lim if x > lim else x)
-                for x, lim in zip(cmd, self._limits, strict=True)
-            ]
+        if self.saturate:  # np.clip on floats
+            l0, l1, l2, l3 = self._limits
+            c0 = -l0 if c0 < -l0 else (l0 if c0 > l0 else c0)
+            c1 = -l1 if c1 < -l1 else (l1 if c1 > l1 else c1)
+            c2 = -l2 if c2 < -l2 else (l2 if c2 > l2 else c2)
+            c3 = -l3 if c3 < -l3 else (l3 if c3 > l3 else c3)
+            cmd = [c0, c1, c2, c3]
         self._last_command = cmd
         total = cmd
         if self.friction_enabled:
             q, qd = self._joint_lists()
             tf = self._last_friction = self._friction(q, qd, cmd)
-            total = [c - f for c, f in zip(cmd, tf, strict=True)]
+            total = [c0 - tf[0], c1 - tf[1], c2 - tf[2], c3 - tf[3]]
         self._p.setJointMotorControlArray(
             self.body_id,
             self.joint_indices,
