@@ -232,10 +232,6 @@ class EndoBotSim:
         self._fs = [f.static for f in fr]
         self._vs = [f.stribeck_velocity for f in fr]
         self._ds = [f.stribeck_exponent for f in fr]
-        self._moving_levels_only = self.friction_model in (
-            FrictionModel.COULOMB,
-            FrictionModel.COULOMB_VISCOUS,
-        )
         self._base_rot = np.array(
             p.getMatrixFromQuaternion(list(base_orientation), physicsClientId=client)
         ).reshape(3, 3)
@@ -445,11 +441,12 @@ class EndoBotSim:
         f3 = v4 + (0.0 + w33 * r3)
         slide: Sequence[float]
         brk: Sequence[float]
-        if self._moving_levels_only:  # models a and b: both levels are Fc
-            slide = brk = self._fc
+        model = self.friction_model
+        if model is FrictionModel.COULOMB_VISCOUS or model is FrictionModel.COULOMB:
+            slide = brk = self._fc  # both levels are Fc (friction_levels, models a and b)
         else:
             slide, brk = friction_levels(
-                qd, self._fc, self._fs, self._vs, self._ds, self.friction_model, _REST_VELOCITY
+                qd, self._fc, self._fs, self._vs, self._ds, model, _REST_VELOCITY
             )
         fv = self._fv
         t1 = _joint_solve(f1, w11, brk[1], slide[1], fv[1])
