@@ -60,6 +60,14 @@ def _step_imports() -> tuple[Any, ...]:
     )
 
 
+@functools.cache
+def _kinematics() -> Any:
+    """:mod:`suture_engine.robot.kinematics`, imported on first use (lazily)."""
+    from suture_engine.robot import kinematics
+
+    return kinematics
+
+
 class MoveConstrainedParams(SkillParams):
     """Parameters of ``move-constrained``."""
 
@@ -178,6 +186,9 @@ class MoveConstrained(Skill):
         self._c_zero: Any = None
         self._df: Any = None
         self._peak_f: Any = None
+        self._jac: Any = None
+        self._next_ref: tuple[float, Any] | None = None
+        self._final_ref: tuple[Any, Any] | None = None
         self.last_qp: Any = None
         """The last tick's :class:`~suture_engine.control.constrained_qp.QPResult` (traces)."""
 
@@ -227,6 +238,8 @@ class MoveConstrained(Skill):
         self._base = ctx.base_poses.get(self._robot)
         self._fixture = self._build_fixture()
         self._t0 = ctx.t0
+        self._next_ref = None
+        self._final_ref = None
         q0 = np.array(ctx.start.robots[self._robot].q, dtype=float)
         # Gravity in the base frame, R_base^T g_world; without a pose, E1's own mounting.
         self._gravity_params = E1
@@ -252,6 +265,7 @@ class MoveConstrained(Skill):
             exit_world = ctx.start.scene.exit_point
             self._exit_base = world_to_base(exit_world, self._base)
         self._q_ref = q0.copy()
+        self._jac = np.zeros((4, 4))  # the QP's Jacobian, refilled in place every tick
         x0 = task_vector(q0)
         target = self._target_world(ctx)
         goal = np.r_[world_to_base(np.asarray(target), self._base), x0[3]]
@@ -291,10 +305,26 @@ class MoveConstrained(Skill):
         return self._x_goal
 
     def _reference(self, t: float) -> tuple[Any, Any]:
-        """Task reference and its velocity at time t [s] since start (smoothstep in f)."""
+        """Task reference and its velocity at time t [s] since start (smoothstep in f).
+
+        The velocity is the forward difference over h = 1 ms. ``_at(t + h)`` is kept: at
+        1 kHz it is the next tick's ``_at(t)`` (reused only when the times are equal to
+        the bit). Once both times are past the duration the smoothstep is clamped, so
+        the reference is constant and its velocity exactly zero: computed once.
+        """
         h = 1e-3
-        x = self._at(t)
-        return x, (self._at(t + h) - x) / h
+        final = self._final_ref
+        if final is not None:
+            return final
+        nxt = self._next_ref
+        x = nxt[1] if nxt is not None and nxt[0] == t else self._at(t)
+        th = t + h
+        x_next = self._at(th)
+        self._next_ref = (th, x_next)
+        v = (x_next - x) / h
+        if t >= self._duration:  # both clamped: x_next == x, v == 0 for every later t
+            self._final_ref = (x, v)
+        return x, v
 
     def step(self, ctx: Any, obs: Any) -> Any:
         """One tick: the QP's joint velocities (autonomous) or the shared-control torques.
@@ -362,12 +392,12 @@ class MoveConstrained(Skill):
             done = p.duration is not None and t >= p.duration
             return StepResult(command, SkillStatus.SUCCESS if done else SkillStatus.RUNNING)
         q_ref = self._q_ref
-        x_ref = task_vector(q_ref)
+        x_ref, jac = _kinematics().task_vector_and_jacobian(q_ref, self._jac)
         x_target, v_target = self._reference(t)
         res = self._qp.solve(
             q_ref,
             x_ref,
-            endobot.jacobian(q_ref),
+            jac,
             v_target=v_target,
             x_target=x_target,
             exit_point=self._exit_base,
@@ -385,7 +415,7 @@ class MoveConstrained(Skill):
                 SkillStatus.FAILURE,
                 f"QP not solved for {self._qp.consecutive_failures} ticks ({res.status})",
             )
-        x_meas = task_vector(np.asarray(ro.q, dtype=float))
+        x_meas = _kinematics().task_vector(ro.q)
         e = self._fixture.value(x_meas)
         np.maximum(self._peak_e, np.abs(e), out=self._peak_e)
         if t < self._duration:

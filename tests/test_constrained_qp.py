@@ -326,3 +326,36 @@ def test_property_bounds_always_hold_and_slack_only_when_needed(
             qa, x, J, v_target=np.array(v), exit_point=EXIT, extension_rate_max=ldot_max
         )
         assert r2.slack_max < 1e-4
+
+
+def test_active_rows_and_slack_match_a_dense_recomputation() -> None:
+    """Active rows and slack_max against A z, l, u from :meth:`matrices` and the solver's
+    own z (dense numpy, not the per-row float loop of the result)."""
+    rng = np.random.default_rng(11)
+    line = Line(direction=[1.0, 1.0, 2.0])
+    cone = Cone(axis=[0.0, 0.0, 1.0], half_angle=0.62)
+    limits = JointLimits(qd_max=np.array([0.5, 0.5, 1.0, 0.05]))
+    qp = ConstrainedQP([line, cone], limits=limits, extension_rate=True, settings=NO_CAP)
+    if qp._low is None:
+        pytest.skip("this OSQP has no compiled solver object to read z from")
+    seen: set[str] = set()
+    for _ in range(40):
+        on_line = rng.uniform(0.05, 0.2) * np.array([1, 1, 2]) / np.sqrt(6)
+        inst = _random_instance(rng, on_line, spread=2e-4)
+        inst["v_target"] = rng.normal(scale=0.2, size=4)
+        res = qp.solve(**inst)
+        assert res.solved
+        z = np.array(qp._low.solution.x)
+        _, _, A, lo, hi = qp.matrices()
+        az = A @ z
+        tol = 2.0 * 1e-5 + 1e-9
+        near = (np.abs(az - hi) <= tol + 1e-4 * np.abs(hi)) | (
+            np.abs(az - lo) <= tol + 1e-4 * np.abs(lo)
+        )
+        eq = np.array([n.startswith("line[") for n in qp.row_names])
+        expected = tuple(n for n, a in zip(qp.row_names, near | eq, strict=True) if a)
+        assert res.active == expected
+        assert res.slack_max == pytest.approx(np.max(np.abs(z[4:])), abs=1e-15)
+        assert np.array_equal(res.qdot, np.clip(z[:4], lo[:4], hi[:4]))
+        seen.update(res.active)
+    assert any(n.startswith("joint_bound") for n in seen)  # the box was reached too

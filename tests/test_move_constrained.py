@@ -185,3 +185,48 @@ def test_joint_space_shared_mode_restores_and_leaves_free_motion_alone() -> None
     assert m["max_deviation_m"] == pytest.approx(np.abs(e).max())
     assert "desired_stiffness_N_per_m" not in m
     assert m["constraint_stiffness_N_per_m"] > 1000.0  # stiff joint PD (Table 6.3: 6268)
+
+
+def _smoothstep(s: float) -> float:
+    s = min(max(s, 0.0), 1.0)
+    return s * s * (3.0 - 2.0 * s)
+
+
+@pytest.mark.parametrize("skip", [False, True], ids=["every-tick", "skipped-ticks"])
+def test_reference_is_the_smoothstep_along_the_line_and_reuses_only_equal_times(
+    skip: bool,
+) -> None:
+    """The reference (kept between ticks) against a hand-built smoothstep between the
+    start's projection on the line and the goal, and bit for bit against a fresh
+    evaluation at every tick (reuse only when the times are equal)."""
+    direction = np.array([1.0, 1.0, 2.0])
+    unit = direction / np.linalg.norm(direction)
+    q0 = endobot.inverse_kinematics(0.08 * unit + np.array([0.001, 0.0, 0.0]), 0.2)
+    skill = MoveConstrained(
+        {
+            "robot": "arm",
+            "fixture": "line",
+            "direction": tuple(direction),
+            "target": tuple(0.1 * unit),
+            "speed": 0.05,
+        }
+    )
+    skill.start(_ctx(_obs(0.0, q0)))
+    x0 = task_vector(q0)
+    start = np.r_[unit * (unit @ x0[:3]), x0[3]]  # x0 projected on the line, its roll
+    goal = np.r_[0.1 * unit, x0[3]]
+    duration = skill._duration
+    ticks = [k for k in range(round(duration * 1e3) + 50) if not (skip and k % 3 == 1)]
+    h = 1e-3
+    for k in ticks:
+        t = k * 1e-3
+        x, v = skill._reference(t)
+        expected = start + _smoothstep(t / duration) * (goal - start)
+        after = start + _smoothstep((t + h) / duration) * (goal - start)
+        np.testing.assert_allclose(x, expected, atol=1e-12)
+        np.testing.assert_allclose(v, (after - expected) / h, atol=1e-8)
+        fresh = skill._at(t)
+        assert x.tobytes() == fresh.tobytes()
+        assert v.tobytes() == ((skill._at(t + h) - fresh) / h).tobytes()
+    assert skill._final_ref is not None  # past the duration: computed once, velocity 0
+    assert not np.any(skill._final_ref[1])

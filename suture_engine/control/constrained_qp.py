@@ -210,6 +210,11 @@ class QPResult(NamedTuple):
     slack_max: float
 
 
+def _at_bound(a: float, lo: float, hi: float, tol: float) -> bool:
+    """Whether a row value a sits at either bound within tol + 1e-4 |bound|."""
+    return abs(a - hi) <= tol + 1e-4 * abs(hi) or abs(a - lo) <= tol + 1e-4 * abs(lo)
+
+
 def _osqp() -> Any:
     import osqp  # lazy: validate must not import it
 
@@ -269,7 +274,8 @@ class ConstrainedQP:
             names.append("extension_rate")
         self.row_names: tuple[str, ...] = tuple(names)
         self._eq_set = frozenset(eq_rows)
-        self._row_items = tuple(enumerate(names))
+        self._box_rows = tuple((i, names[i]) for i in range(_N))
+        self._soft_rows = tuple((i, names[i], i in self._eq_set) for i in range(_N, len(names)))
 
         # Preallocated buffers, and views into them, filled in place every tick.
         w = self.weights
@@ -372,35 +378,34 @@ class ConstrainedQP:
         self._qmax_l = lim.q_max.tolist()
         self._qd_l = lim.qd_max.tolist()
         self._q2_edge = math.pi / 2 - lim.q2_margin
+        self._horizon = lim.horizon
+        self._inv_tau = 1.0 / lim.singular_time_constant
+        self._q4_min = lim.q4_min
         self._box: tuple[list[float], list[float]] = ([], [])
 
     # ------------------------------------------------------------------ assembly
     def _joint_bounds(self, q: Array) -> None:
         # Plain floats, unrolled over the four joints: cheaper than ten numpy calls.
-        lim = self.limits
-        h = lim.horizon
-        inv_tau = 1.0 / lim.singular_time_constant
+        h = self._horizon
+        inv_tau = self._inv_tau
         q0, q1, q2, q3 = q.tolist()
-        mn, mx = self._qmin_l, self._qmax_l
+        mn0, mn1, mn2, mn3 = self._qmin_l
+        mx0, mx1, mx2, mx3 = self._qmax_l
+        v0, v1, v2, v3 = self._qd_l
         edge = self._q2_edge
-        lo = [
-            (mn[0] - q0) / h,
-            max((mn[1] - q1) / h, (-edge - q1) * inv_tau),
-            (mn[2] - q2) / h,
-            max((mn[3] - q3) / h, (lim.q4_min - q3) * inv_tau),
-        ]
+        # Each joint: clamp into [-v, v]; outside a bound already: move back (at most
+        # at the speed limit), never an empty box.
+        lo0 = min(max((mn0 - q0) / h, -v0), v0)
+        lo1 = min(max(max((mn1 - q1) / h, (-edge - q1) * inv_tau), -v1), v1)
+        lo2 = min(max((mn2 - q2) / h, -v2), v2)
+        lo3 = min(max(max((mn3 - q3) / h, (self._q4_min - q3) * inv_tau), -v3), v3)
+        lo = [lo0, lo1, lo2, lo3]
         hi = [
-            (mx[0] - q0) / h,
-            min((mx[1] - q1) / h, (edge - q1) * inv_tau),
-            (mx[2] - q2) / h,
-            (mx[3] - q3) / h,
+            max(min(max((mx0 - q0) / h, -v0), v0), lo0),
+            max(min(max(min((mx1 - q1) / h, (edge - q1) * inv_tau), -v1), v1), lo1),
+            max(min(max((mx2 - q2) / h, -v2), v2), lo2),
+            max(min(max((mx3 - q3) / h, -v3), v3), lo3),
         ]
-        for j, v in enumerate(self._qd_l):
-            lo_j = min(max(lo[j], -v), v)
-            # Outside a bound already: move back (at most at the speed limit), never an
-            # empty box.
-            hi[j] = max(min(max(hi[j], -v), v), lo_j)
-            lo[j] = lo_j
         self._l_qd[:] = lo
         self._u_qd[:] = hi
         self._box = (lo, hi)  # the same values as floats, for _finish
@@ -510,48 +515,56 @@ class ConstrainedQP:
         ok = status == "solved" and len(zl) == self.n and all(map(math.isfinite, zl))
         if ok:
             # The joint box is hard: clip the solver's tolerance-level excursions
-            # (eps_abs + eps_rel * |z|) so the command never leaves it.
+            # (eps_abs + eps_rel * |z|) so the command never leaves it. A fresh read-only
+            # array: handed to the result as it is (hold() copies it).
             lo, hi = self._box
-            self._qdot[:] = [min(max(zl[j], lo[j]), hi[j]) for j in range(_N)]
+            z0, z1, z2, z3 = zl[0], zl[1], zl[2], zl[3]
+            qdot = np.array(
+                (
+                    min(max(z0, lo[0]), hi[0]),
+                    min(max(z1, lo[1]), hi[1]),
+                    min(max(z2, lo[2]), hi[2]),
+                    min(max(z3, lo[3]), hi[3]),
+                )
+            )
+            qdot.flags.writeable = False
+            self._qdot = qdot
             self.consecutive_failures = 0
             slack = max(map(abs, zl[_N:])) if self._m_soft else 0.0
             active = self._active(zl)
-        else:
-            self.failures += 1
-            self.consecutive_failures += 1
-            if status == "run time limit reached":
-                self.time_limit_hits += 1
-            slack = float("nan")
-            active = ()
+            return QPResult(qdot, str(status), True, int(iters), float(solve_time), active, slack)
+        self.failures += 1
+        self.consecutive_failures += 1
+        if status == "run time limit reached":
+            self.time_limit_hits += 1
         return QPResult(
             qdot=self._qdot.copy(),
             status=str(status),
-            solved=ok,
+            solved=False,
             iterations=int(iters),
             solve_time_s=float(solve_time),
-            active=active,
-            slack_max=slack,
+            active=(),
+            slack_max=float("nan"),
         )
 
     def _active(self, z: list[float]) -> tuple[str, ...]:
         # A row is active when |A z - bound| <= 2 eps_abs + 1e-4 |bound|; equality fixture
         # rows always are. Plain floats: for ten rows this beats a dozen numpy calls.
         tol = self._act_tol
-        lo_l, hi_l = self._l.tolist(), self._u.tolist()
-        g = self._G.tolist() if self._m_soft else []
-        out = []
-        for i, name in self._row_items:
-            if i in self._eq_set:
-                out.append(name)
-                continue
-            if i < _N:
-                a = z[i]
-            else:
+        lo_l, hi_l = self._box
+        out = [name for i, name in self._box_rows if _at_bound(z[i], lo_l[i], hi_l[i], tol)]
+        if self._m_soft:
+            lo_l, hi_l = self._l.tolist(), self._u.tolist()
+            g = self._G.tolist()
+            z0, z1, z2, z3 = z[0], z[1], z[2], z[3]
+            for i, name, eq in self._soft_rows:
+                if eq:
+                    out.append(name)
+                    continue
                 row = g[i - _N]
-                a = row[0] * z[0] + row[1] * z[1] + row[2] * z[2] + row[3] * z[3] + z[i]
-            hi, lo = hi_l[i], lo_l[i]
-            if abs(a - hi) <= tol + 1e-4 * abs(hi) or abs(a - lo) <= tol + 1e-4 * abs(lo):
-                out.append(name)
+                a = row[0] * z0 + row[1] * z1 + row[2] * z2 + row[3] * z3 + z[i]
+                if _at_bound(a, lo_l[i], hi_l[i], tol):
+                    out.append(name)
         return tuple(out)
 
     # ------------------------------------------------------------------ introspection

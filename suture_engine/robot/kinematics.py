@@ -34,6 +34,8 @@ __all__ = [
     "jacobian_determinant",
     "manipulability",
     "rotation",
+    "task_vector",
+    "task_vector_and_jacobian",
 ]
 
 SINGULARITY_MARGIN = 1e-4
@@ -90,6 +92,62 @@ def forward_kinematics(q: Sequence[float] | FloatArray) -> ToolPose:
     return ToolPose(
         np.array((math.sin(q2) * q4, -math.sin(q1) * c2q4, math.cos(q1) * c2q4)), float(q3)
     )
+
+
+def task_vector(q: Sequence[float] | FloatArray) -> FloatArray:
+    """x = k(q) = (x, y, z, φ) of (3.12)-(3.13) as one array [m, m, m, rad].
+
+    The same floating-point operations as :func:`forward_kinematics`, without the
+    :class:`ToolPose` (the per-tick form of the resolved-rate skills).
+
+    Args:
+        q: joints (yaw [rad], pitch [rad], roll [rad], insertion [m]).
+
+    Returns:
+        The task vector, shape (4,).
+    """
+    q1, q2, q3, q4 = _floats(q)
+    c2q4 = math.cos(q2) * q4
+    return np.array((math.sin(q2) * q4, -math.sin(q1) * c2q4, math.cos(q1) * c2q4, q3))
+
+
+def task_vector_and_jacobian(
+    q: Sequence[float] | FloatArray, out: FloatArray | None = None
+) -> tuple[FloatArray, FloatArray]:
+    """k(q) (3.13) and the analytical Jacobian (3.21) from one set of sines and cosines.
+
+    Bit for bit :func:`task_vector` and :func:`analytical_jacobian` (same operations).
+
+    Args:
+        q: joints [rad, rad, rad, m].
+        out: optional preallocated (4, 4) array for the Jacobian.
+
+    Returns:
+        (x [m, m, m, rad] shape (4,), J shape (4, 4)).
+    """
+    q1, q2, q3, q4 = _floats(q)
+    c1, s1 = math.cos(q1), math.sin(q1)
+    c2, s2 = math.cos(q2), math.sin(q2)
+    c2q4 = c2 * q4
+    x = np.array((s2 * q4, -s1 * c2q4, c1 * c2q4, q3))
+    j = np.zeros((4, 4)) if out is None else out
+    j[0, 0] = 0.0
+    j[0, 1] = q4 * c2
+    j[0, 2] = 0.0
+    j[0, 3] = s2
+    j[1, 0] = -q4 * c1 * c2
+    j[1, 1] = q4 * s1 * s2
+    j[1, 2] = 0.0
+    j[1, 3] = -s1 * c2
+    j[2, 0] = -q4 * s1 * c2
+    j[2, 1] = -q4 * c1 * s2
+    j[2, 2] = 0.0
+    j[2, 3] = c1 * c2
+    j[3, 0] = 0.0
+    j[3, 1] = 0.0
+    j[3, 2] = 1.0
+    j[3, 3] = 0.0
+    return x, j
 
 
 def rotation(q: Sequence[float] | FloatArray) -> FloatArray:
