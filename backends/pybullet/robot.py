@@ -522,7 +522,12 @@ class EndoBotSim:
         )
 
     def measure(self) -> EndoBotMeasurement:
-        """Sample the encoders and the base F/T sensor once (one control tick)."""
+        """Sample the encoders and the base F/T sensor once (one control tick).
+
+        One PyBullet call reads the four joints and the F/T joint. An ideal sensor skips
+        its random draws unless an imperfect sensor shares its generator (then the
+        draws keep that sensor's noise on the seeded stream).
+        """
         states = self._p.getJointStates(
             self.body_id, self._measured_joints, physicsClientId=self.client
         )
