@@ -172,3 +172,74 @@ def test_both_throws_validate_and_mirror_each_other() -> None:
     ra = float(first.proc.states["touch-stem"].params.roll)
     rb = float(mirror.proc.states["touch-stem"].params.roll)
     assert ra == pytest.approx(-rb)
+
+
+@pytest.mark.slow
+def test_algorithm_1_runs_its_motions_on_pybullet(tmp_path: Path) -> None:
+    """Plain PyBullet (robots only, no thread): the motions of steps 2-6a complete.
+
+    Without the stitch (skipped) the plain backend reports both stitcher jaws open,
+    so ``pass-needle`` cannot tell which holds the needle and the run locks there;
+    on the surgical backends the stitcher reports its needle jaw closed.
+    """
+    import json
+    import subprocess
+    import sys
+
+    from suture_engine.trace.reader import TraceReader
+
+    out = tmp_path / "run"
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "from suture_engine.cli import main; main()",
+            "run",
+            str(PROC),
+            "--set",
+            "stitch=false",
+            "--seed",
+            "1",
+            "--out",
+            str(out),
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=1200,
+        check=False,
+    )
+    assert res.returncode in (0, 1), res.stdout + res.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["retries"] == 0 and summary["violations"] == []
+    trace = TraceReader(out / "trace.mcap")
+    dests = [m.data["dest"] for m in trace.messages(["/transitions"])]
+    steps = ["grab-tail", "touch-stem", "rotate", "slide-to-tip", "turn-grasper"]
+    assert [d for d in dests if d.startswith("autonomous/")][1:6] == [
+        f"autonomous/{s}" for s in steps
+    ]
+    # the measured stitcher tip during the rotation stays on its circle about OP
+    s = Setup(False)
+    times = {m.data["dest"]: m.log_time_ns for m in trace.messages(["/transitions"])}
+    t0, t1 = times["autonomous/rotate"], times["autonomous/slide-to-tip"]
+    pos, rot = s.bases["endobot_1"]
+    tips = [
+        np.asarray(pos)
+        + np.array(rot).reshape(3, 3) @ forward_kinematics(m.data["position"]).position
+        for m in trace.messages(["/joint_state/endobot_1"])
+        if t0 <= m.log_time_ns <= t1
+    ]
+    q2 = [
+        m.data["position"]
+        for m in trace.messages(["/joint_state/endobot_2"])
+        if m.log_time_ns == t0
+    ]
+    p2 = (
+        np.asarray(s.bases["endobot_2"][0])
+        + np.array(s.bases["endobot_2"][1]).reshape(3, 3) @ forward_kinematics(q2[0]).position
+    )
+    point = p2 + np.asarray(s.proc.states["rotate"].params.point)
+    axis = (point - s.o1) / np.linalg.norm(point - s.o1)
+    rel = np.array(tips) - s.o1
+    radial = np.linalg.norm(rel - np.outer(rel @ axis, axis), axis=1)
+    assert np.ptp(radial) < 2e-3 and np.ptp(rel @ axis) < 2e-3

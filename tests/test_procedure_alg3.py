@@ -159,3 +159,55 @@ def test_the_half_turn_keeps_the_shafts_apart() -> None:
     assert skill.shaft_gap > 5e-3
     assert independent_gap(skill) == pytest.approx(skill.shaft_gap, abs=1.5e-3)
     assert skill._failure == ""
+
+
+def run_cli(tmp_path: Path, *args: str) -> tuple[dict[str, Any], Any]:
+    """Run ``suture run`` in a subprocess; (summary, trace reader)."""
+    import json
+    import subprocess
+    import sys
+
+    from suture_engine.trace.reader import TraceReader
+
+    out = tmp_path / "run"
+    res = subprocess.run(
+        [
+            sys.executable,
+            "-c",
+            "from suture_engine.cli import main; main()",
+            "run",
+            *args,
+            "--out",
+            str(out),
+        ],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        timeout=1200,
+        check=False,
+    )
+    assert res.returncode in (0, 1), res.stdout + res.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    return summary, TraceReader(out / "trace.mcap")
+
+
+@pytest.mark.slow
+def test_algorithm_3_locks_at_the_loop_without_moving_on_pybullet(tmp_path: Path) -> None:
+    summary, trace = run_cli(
+        tmp_path, str(PROC), "--set", "stitch=false", "--set", "pick_strand=true", "--seed", "1"
+    )
+    assert summary["final_state"] == "lock" and summary["outcome"] == "failed"
+    events = [m.data for m in trace.messages(["/events"])]
+    faults = [e for e in events if e["kind"] == "unpredictable"]
+    assert faults[-1]["state"] == "autonomous/loop"
+    assert "would cross the other shaft" in faults[-1]["detail"]
+    # the holder did not start the loop: its joints at the lock are those at the loop's start
+    start = next(
+        m.log_time_ns
+        for m in trace.messages(["/transitions"])
+        if m.data["dest"] == "autonomous/loop"
+    )
+    qs = [m.data["position"] for m in trace.messages(["/joint_state/endobot_1"])]
+    times = [m.log_time_ns for m in trace.messages(["/joint_state/endobot_1"])]
+    q_start = qs[times.index(start)] if start in times else qs[-1]
+    assert np.allclose(qs[-1], q_start, atol=2e-3)
