@@ -114,7 +114,10 @@ class ModeController:
                 return self._pd[robot].update(obs.q, obs.qd, sp, command.qd)  # a fresh array
             assert command.q is not None
             qd_des = command.qd if command.qd is not None else self._zero
-            self._hold[robot] = np.array(command.q)
+            q_cmd = command.q
+            # A read-only set point (every RobotCommand constructor freezes it) is kept as
+            # it is; anything else is copied.
+            self._hold[robot] = q_cmd if not q_cmd.flags.writeable else np.array(q_cmd)
             self._vel_setpoint.pop(robot, None)
             return self._pd[robot].update(obs.q, obs.qd, command.q, qd_des)
         hold = self._hold.get(robot)

@@ -106,10 +106,8 @@ class RobotMeasurement:
         """A measurement from read-only float64 arrays of shapes (4,) and (6,) that the
         caller never changes (no copy, no checks): a backend's per-tick fast path."""
         m = object.__new__(cls)
-        object.__setattr__(m, "q", q)
-        object.__setattr__(m, "base_wrench", base_wrench)
-        object.__setattr__(m, "tool", tool)
-        object.__setattr__(m, "fault", fault)
+        # The instance dict filled at once: the fields' values, as __init__ would set them.
+        m.__dict__.update(q=q, base_wrench=base_wrench, tool=tool, fault=fault)
         return m
 
 
@@ -207,10 +205,7 @@ class RobotObservation:
         """An observation from read-only float64 arrays that the caller never changes (no
         copy, no checks): the interpreter's per-tick fast path."""
         o = object.__new__(cls)
-        object.__setattr__(o, "q", q)
-        object.__setattr__(o, "qd", qd)
-        object.__setattr__(o, "base_wrench", base_wrench)
-        object.__setattr__(o, "tool", tool)
+        o.__dict__.update(q=q, qd=qd, base_wrench=base_wrench, tool=tool)
         return o
 
 
@@ -309,11 +304,7 @@ class RobotCommand:
         q.flags.writeable = False
         if qd is not None:
             qd.flags.writeable = False
-        object.__setattr__(cmd, "mode", CommandMode.POSITION)
-        object.__setattr__(cmd, "q", q)
-        object.__setattr__(cmd, "qd", qd)
-        object.__setattr__(cmd, "tau", None)
-        object.__setattr__(cmd, "tool", tool)
+        cmd.__dict__.update(mode=CommandMode.POSITION, q=q, qd=qd, tau=None, tool=tool)
         return cmd
 
     @classmethod
@@ -329,11 +320,7 @@ class RobotCommand:
         """
         cmd = object.__new__(cls)
         tau.flags.writeable = False
-        object.__setattr__(cmd, "mode", CommandMode.TORQUE)
-        object.__setattr__(cmd, "q", None)
-        object.__setattr__(cmd, "qd", None)
-        object.__setattr__(cmd, "tau", tau)
-        object.__setattr__(cmd, "tool", tool)
+        cmd.__dict__.update(mode=CommandMode.TORQUE, q=None, qd=None, tau=tau, tool=tool)
         return cmd
 
 
