@@ -467,3 +467,42 @@ def test_bending_stiffness_straightens_a_bent_thread() -> None:
     assert limp > soft > nominal > stiff
     with pytest.raises(InvalidSutureParams):
         SutureParams(bending_stiffness=-1.0)
+
+
+def test_thread_rests_on_the_stitchers_open_jaw() -> None:
+    """With ``collide_with``, a thread laid on the empty jaw of a stitcher rests on it
+    (4.4.1 step 4: the thread lays over the open jaw); without it, it falls through."""
+    import pybullet as p
+
+    from backends.pybullet.suture import Suture, configure_physics, straight_path
+
+    def lowest_after(collide: bool) -> tuple[float, float, int]:
+        c = p.connect(p.DIRECT)
+        try:
+            configure_physics(c)
+            st = Stitcher.create(c, "st", (0.0, 0.0, 0.05))
+            jaw, _ = p.getBasePositionAndOrientation(st.jaws[1], physicsClientId=c)
+            sut = Suture.create(
+                c,
+                straight_path((jaw[0], -0.05, jaw[2] + 4e-3), (0, 1, 0), 0.1),
+                SutureParams(length=0.1, n_segments=20, needle=False),
+            )
+            if collide:
+                st.collide_with(sut)
+            mid = sut.bodies[10]  # lies across the jaw
+            for _ in range(80):  # pressed down by 20 mN per capsule for 80 ms
+                st.step()
+                for b in sut.bodies:
+                    x, _ = p.getBasePositionAndOrientation(b, physicsClientId=c)
+                    p.applyExternalForce(b, -1, [0, 0, -0.02], x, p.WORLD_FRAME, physicsClientId=c)
+                p.stepSimulation(physicsClientId=c)
+            z = p.getBasePositionAndOrientation(mid, physicsClientId=c)[0][2]
+            touching = len(p.getContactPoints(bodyA=st.jaws[1], physicsClientId=c))
+            return float(z), float(jaw[2]), touching
+        finally:
+            p.disconnect(physicsClientId=c)
+
+    z, jaw_z, touching = lowest_after(True)
+    assert touching > 0 and z > jaw_z + 3e-3  # on the jaw's top (3 mm above its centre)
+    z, jaw_z, touching = lowest_after(False)
+    assert touching == 0 and z < jaw_z

@@ -599,6 +599,8 @@ def _build_model(
             if name == holder:
                 tool.grip(len(suture.bodies) - 1)
         tool.mount(robot.body_id, robot.tool_link)
+        if isinstance(tool, Stitcher):
+            tool.collide_with(suture)
         # The tool's parts pass through the pad and never touch their own instrument.
         links = range(-1, p.getNumJoints(robot.body_id, physicsClientId=client))
         for part in (b for b in tool._parts() if b >= 0):

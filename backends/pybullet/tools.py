@@ -699,6 +699,23 @@ class Stitcher(Tool):
     def _parts(self) -> list[int]:
         return [self.body, *self.jaws]
 
+    def collide_with(self, suture: Suture, spare: int = 2) -> None:
+        """Let the jaws touch ``suture`` (a thread can rest on an open jaw, 4.4.1), except
+        its needle and its last ``spare`` capsules (at the needle, in a jaw).
+
+        The jaws then collide with whatever else collides by default (other tools,
+        robots); the caller filters what they must pass through (the tissue pad, the
+        robot carrying them).
+        """
+        import pybullet as p
+
+        c = self.client
+        for jaw in self.jaws:
+            p.setCollisionFilterGroupMask(jaw, -1, 1, 0x7FFF, physicsClientId=c)
+            others = [*suture.bodies[len(suture.bodies) - spare :], suture.needle_body]
+            for body in (b for b in others if b >= 0):
+                p.setCollisionFilterPair(jaw, body, -1, -1, 0, physicsClientId=c)
+
     def _drive_jaws(self) -> None:
         """(Re)build the constraints holding the jaws at the current opening."""
         import pybullet as p
