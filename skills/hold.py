@@ -32,6 +32,7 @@ class Hold(Skill):
         super().__init__(params)
         self._robot = ""
         self._q: Any = None
+        self._command: Any = None
         self._t0 = 0.0
 
     def start(self, ctx: Any) -> None:
@@ -42,9 +43,13 @@ class Hold(Skill):
         """
         p = self.params
         assert isinstance(p, HoldParams)
+        from suture_engine.runtime.observation import Command, RobotCommand
+
         self._robot = ctx.robot(p.robot)
         self._q = ctx.start.robots[self._robot].q
         self._t0 = ctx.t0
+        # The same set point every tick: one frozen command, built once.
+        self._command = Command({self._robot: RobotCommand.position(self._q)})
 
     def step(self, ctx: Any, obs: Any) -> Any:
         """Regulate the captured pose; succeed once ``duration`` [s] has passed.
@@ -56,16 +61,11 @@ class Hold(Skill):
         Returns:
             A :class:`suture_engine.runtime.observation.StepResult`.
         """
-        from suture_engine.runtime.observation import (
-            Command,
-            RobotCommand,
-            SkillStatus,
-            StepResult,
-        )
+        from suture_engine.runtime.observation import SkillStatus, StepResult
 
         p = self.params
         assert isinstance(p, HoldParams)
-        command = Command({self._robot: RobotCommand.position(self._q)})
+        command = self._command
         if p.duration is not None and obs.t - self._t0 >= p.duration - 0.5 * ctx.dt:
             return StepResult(command, SkillStatus.SUCCESS)
         return StepResult(command)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 from typing import Any, ClassVar
 
 from pydantic import Field
@@ -11,6 +12,17 @@ from suture_engine.language.refs import PointRef, RoleRef
 from suture_engine.language.units import Angle, Length, Position, Speed
 
 __all__ = ["MoveTo", "MoveToParams"]
+
+
+@functools.cache
+def _step_imports() -> tuple[Any, ...]:
+    """The names step() uses, imported once (lazily: validation never imports numpy)."""
+    import numpy as np
+
+    from suture_engine.runtime.observation import Command, RobotCommand, SkillStatus, StepResult
+    from suture_engine.runtime.trajectory import tool_tip_world
+
+    return np, Command, RobotCommand, SkillStatus, StepResult, tool_tip_world
 
 
 class MoveToParams(SkillParams):
@@ -124,21 +136,13 @@ class MoveTo(Skill):
         Returns:
             A :class:`suture_engine.runtime.observation.StepResult`.
         """
-        import numpy as np
-
-        from suture_engine.runtime.observation import (
-            Command,
-            RobotCommand,
-            SkillStatus,
-            StepResult,
-        )
-        from suture_engine.runtime.trajectory import tool_tip_world
-
+        np, Command, RobotCommand, SkillStatus, StepResult, tool_tip_world = _step_imports()
         p = self.params
         assert isinstance(p, MoveToParams)
         t = obs.t - self._t0
         sample = self._traj(t)
-        command = Command({self._robot: RobotCommand.position(sample.q, sample.qd)})
+        # The sample's arrays are fresh (MinJerk computes new ones per call): handed over.
+        command = Command({self._robot: RobotCommand.trusted_position(sample.q, sample.qd)})
         if not sample.done:
             return StepResult(command)
         tip = tool_tip_world(obs.robots[self._robot].q, self._base)
