@@ -210,11 +210,6 @@ class QPResult(NamedTuple):
     slack_max: float
 
 
-def _at_bound(a: float, lo: float, hi: float, tol: float) -> bool:
-    """Whether a row value a sits at either bound within tol + 1e-4 |bound|."""
-    return abs(a - hi) <= tol + 1e-4 * abs(hi) or abs(a - lo) <= tol + 1e-4 * abs(lo)
-
-
 def _osqp() -> Any:
     import osqp  # lazy: validate must not import it
 
@@ -552,7 +547,11 @@ class ConstrainedQP:
         # rows always are. Plain floats: for ten rows this beats a dozen numpy calls.
         tol = self._act_tol
         lo_l, hi_l = self._box
-        out = [name for i, name in self._box_rows if _at_bound(z[i], lo_l[i], hi_l[i], tol)]
+        out = []
+        for i, name in self._box_rows:
+            a, hi, lo = z[i], hi_l[i], lo_l[i]
+            if abs(a - hi) <= tol + 1e-4 * abs(hi) or abs(a - lo) <= tol + 1e-4 * abs(lo):
+                out.append(name)
         if self._m_soft:
             lo_l, hi_l = self._l.tolist(), self._u.tolist()
             g = self._G.tolist()
@@ -563,7 +562,8 @@ class ConstrainedQP:
                     continue
                 row = g[i - _N]
                 a = row[0] * z0 + row[1] * z1 + row[2] * z2 + row[3] * z3 + z[i]
-                if _at_bound(a, lo_l[i], hi_l[i], tol):
+                hi, lo = hi_l[i], lo_l[i]
+                if abs(a - hi) <= tol + 1e-4 * abs(hi) or abs(a - lo) <= tol + 1e-4 * abs(lo):
                     out.append(name)
         return tuple(out)
 
