@@ -139,8 +139,11 @@ def test_one_knot_entry_per_stitch() -> None:
     # the whole thread is the connected sum: what a single entry would (wrongly) say
     whole = knot_entries(pts, SURFACE, NORMAL, 0.5 * MM, bites=[])
     assert len(whole) == 1 and whole[0]["type"] not in ("square", "granny", "unknot")
-    for e in entries:  # knot_lay's verdict on the stitch's own piece
+    for e in entries[::2]:  # knot_lay's verdict on the stitch's own piece
         assert e["post_straight"] in (True, False, None) and e["lay"] in LAYS
+    # an unknotted stitch has no lay: strands that merely touch are not two half hitches
+    assert entries[1]["post_straight"] is None and "lay" not in entries[1]
+    assert "no knot" in entries[1]["post_straight_reason"]
     first = pts[: int(np.argmax(pts[:, 2] > 100 * MM))]  # up to the first detour's top
     assert entries[0]["lay"] == knot_lay(first, diameter=0.5 * MM).lay
 

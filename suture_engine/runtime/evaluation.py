@@ -326,7 +326,11 @@ def knot_entries(
             entry = {"type": None, "error": str(exc)}
         if len(bites) > 1:
             entry["stitch"] = k + 1
-        if contact_diameter is None:
+        if entry.get("type") in (None, "unknot"):
+            # no knot to lie square or as half hitches: strands that merely touch are not a lay
+            entry["post_straight"] = None
+            entry["post_straight_reason"] = "no knot in this stitch's thread"
+        elif contact_diameter is None:
             entry["post_straight"] = None
             entry["post_straight_reason"] = "the backend gives no thread contact diameter"
         else:
