@@ -51,15 +51,21 @@ ROBOTS = ("endobot_1", "endobot_2")
 THREAD_KINDS = ("grasp-slip", "snag")
 
 
-def targets(surgical: int) -> list[tuple[Target, int]]:
-    """(target, share) pairs: the ideal-backend stitch, and the surgical one if asked."""
+def targets(
+    surgical: int, backend: str = "ideal", surgical_max_time: float = 30.0
+) -> list[tuple[Target, int]]:
+    """(target, share) pairs: the stitch on ``backend``, and the surgical one if asked.
+
+    ``surgical_max_time`` [s]: the surgical runs' time limit (the stitch takes about 17 s
+    simulated on ``pybullet-surgical``; the first campaign's 15 s cut every run before its end).
+    """
     from suture_engine.runtime.run import load_plan
 
     _, plan = load_plan(STITCH)
     steps = tuple(plan.steps)
     ideal = Target(
         STITCH,
-        "ideal",
+        backend,
         tuple(k for k in FAULT_KINDS if k not in THREAD_KINDS),
         steps,
         ROBOTS,
@@ -76,7 +82,15 @@ def targets(surgical: int) -> list[tuple[Target, int]]:
         if hooks:
             out.append(
                 (
-                    Target(STITCH, "pybullet-surgical", THREAD_KINDS, steps, ROBOTS, 10.0, 15.0),
+                    Target(
+                        STITCH,
+                        "pybullet-surgical",
+                        THREAD_KINDS,
+                        steps,
+                        ROBOTS,
+                        10.0,
+                        surgical_max_time,
+                    ),
                     surgical * len(THREAD_KINDS),
                 )
             )
@@ -87,7 +101,19 @@ def targets(surgical: int) -> list[tuple[Target, int]]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--runs", type=int, default=200, help="runs on the ideal backend")
+    ap.add_argument("--runs", type=int, default=200, help="runs on --backend")
+    ap.add_argument(
+        "--backend",
+        choices=("ideal", "pybullet"),
+        default="ideal",
+        help="backend of the --runs runs (pybullet: the simulated robots, no thread)",
+    )
+    ap.add_argument(
+        "--surgical-max-time",
+        type=float,
+        default=30.0,
+        help="time limit of the surgical runs [s]",
+    )
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--seed", type=int, default=0, help="base seed of the fault draws")
     ap.add_argument("--surgical", type=int, default=0, help="runs per thread fault kind")
@@ -104,7 +130,9 @@ def main() -> None:
 
     out = args.out or Path(tempfile.mkdtemp(prefix="fault-campaign-"))
     jobs: list[CampaignJob] = []
-    for n, (target, share) in enumerate(targets(args.surgical)):
+    for n, (target, share) in enumerate(
+        targets(args.surgical, args.backend, args.surgical_max_time)
+    ):
         count = args.runs if share == 0 else share
         batch = make_jobs([target], count, args.seed + 1000 * n, out / target.backend)
         jobs += [j._replace(number=len(jobs) + k) for k, j in enumerate(batch)]
