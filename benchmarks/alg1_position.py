@@ -22,10 +22,11 @@ step 4, the contact height, the stitcher's roll there, whether the path keeps th
 joint limits, the three clearances [mm], and two verdicts: ``thesis`` (joint
 limits kept and the needle tip clear by 1 mm) and ``tool`` (also the needle and
 the tip body clear: what the bundled stitcher would need). No physics: this is
-the kinematic model and the declared tool geometry. (On ``pybullet-surgical`` the
-rotation at the bench's default knot completes anyway: the robots' collision
-shafts stop short of the tips and the needle only brushes the grasper stem, about
-0.9 N on both base sensors.)
+the kinematic model and the declared tool geometry. On ``pybullet-surgical`` at the
+bench's default knot: while the stitcher's jaws did not collide, the rotation
+completed with the needle brushing the grasper stem (about 0.9 N on both base
+sensors); with colliding jaws it pressed the tools together until the tension
+emergency (6.36 N), as the ``needle`` column predicts.
 
     python benchmarks/alg1_position.py [--x -60,-40,...] [--y -20,0,20]
 """
