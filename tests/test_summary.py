@@ -57,7 +57,10 @@ def test_summary_has_one_knot_per_stitch_and_the_stitch_metrics(tmp_path: Path) 
         (3, "granny"),
     ]
     for k in s.knot:
-        assert {"type", "determinant", "v2", "v3", "seated", "post_straight", "lay"} <= set(k)
+        assert {"type", "determinant", "v2", "v3", "seated", "post_straight"} <= set(k)
+    # a knotted stitch has its lay; the unknotted one has none (post_straight null)
+    assert "lay" in s.knot[0] and "lay" in s.knot[2] and "lay" not in s.knot[1]
+    assert s.knot[1]["post_straight"] is None
     stitches = s.metrics["stitches"]
     assert stitches["count"] == 3
     assert stitches["bite_depth_mm"] == pytest.approx([2.0, 3.0, 2.5])
