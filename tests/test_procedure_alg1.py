@@ -39,6 +39,8 @@ PROC = ROOT / "procedures" / "knot-algorithm-1.yaml"
 HEIGHT = 0.04
 """Contact height up the grasper stem the procedure uses [m]."""
 STEM_RADIUS = 2.5e-3
+JAW_GAP = 2e-3
+"""Distance from the open jaw's centre to the stem's surface the procedure uses [m]."""
 
 
 class Setup:
@@ -77,8 +79,8 @@ def test_the_open_jaw_touches_the_stem_high_up(mirror: bool) -> None:
     fk = np.asarray(pos) + np.array(rot).reshape(3, 3) @ forward_kinematics(s.q1).position
     assert np.allclose(fk, s.tip1, atol=1e-9)
     jaw = s.tip1 + s.frame @ np.asarray(STITCHER_JAW)
-    # the open jaw's centre: 2.5 mm stem + 1 mm half jaw from the stem's axis, 40 mm up it
-    assert stem_distance(jaw, s) == pytest.approx(STEM_RADIUS + 1e-3, abs=5e-5)
+    # the open jaw's centre: 2.5 mm stem + 2 mm from the stem's axis, 40 mm up it
+    assert stem_distance(jaw, s) == pytest.approx(STEM_RADIUS + JAW_GAP, abs=5e-5)
     assert (jaw - s.t2) @ s.u == pytest.approx(HEIGHT, abs=5e-4)
     # the needle's jaw lies away from the stem, along the tool's -x
     needle_jaw = s.tip1 + s.frame @ (np.asarray(STITCHER_JAW) * np.array((-1.0, 1.0, 1.0)))
@@ -93,7 +95,12 @@ def test_the_open_jaw_touches_the_stem_high_up(mirror: bool) -> None:
     assert np.allclose(point, jaw, atol=1e-4)
     # the YAML's rounded numbers are the skill's model
     c = stem_contact(
-        s.bases["endobot_1"], (s.t2, s.o2), HEIGHT, -1.0 if mirror else 1.0, STEM_RADIUS
+        s.bases["endobot_1"],
+        (s.t2, s.o2),
+        HEIGHT,
+        -1.0 if mirror else 1.0,
+        STEM_RADIUS,
+        jaw_half_width=JAW_GAP,
     )
     assert np.allclose(c.tip, s.tip1, atol=1e-4)
     assert np.allclose(c.contact, point, atol=1e-4)
@@ -143,7 +150,7 @@ def test_the_half_turn_about_op_keeps_the_limits_and_the_needle_tip_clear(mirror
 @pytest.mark.parametrize("mirror", [False, True])
 def test_the_bundled_stitcher_itself_sweeps_through_the_stem(mirror: bool) -> None:
     # what the thesis' condition leaves out: the needle's jaw and the half-circle needle
-    # turn about the open jaw 2-8 mm away, while the stem lies 3.5 mm from it; the
+    # turn about the open jaw 2-8 mm away, while the stem lies 4.5 mm from it; the
     # procedure checks the whole needle, so the rotation is refused before moving
     s = Setup(mirror)
     skill = plan_rotation(s)
