@@ -8,7 +8,7 @@ steps 2-4 as the procedure does, with the skills' own geometry:
 * step 2: the grasper holds the tail 8 mm beyond the entry point (entry = knot - 4 mm
   in y), 2 mm above the tissue;
 * step 3: :func:`skills.rotate_about.stem_contact` puts the stitcher's open jaw
-  against the front (first throw) or back (mirrored throw) of the grasper stem, as
+  2 mm off the front (first throw) or back (mirrored throw) of the grasper stem, as
   far up the stem as the workspace allows (the highest of 40, 35, ..., 10 mm whose
   pose and rotation stay in the joint limits, else the one with the fewest
   problems);
@@ -48,6 +48,8 @@ HEIGHTS = (0.04, 0.035, 0.03, 0.025, 0.02, 0.015, 0.01)
 """Contact heights up the grasper stem tried, highest first [m]."""
 CLEARANCE = 1e-3
 """Required clearance [m]."""
+JAW_GAP = 2e-3
+"""Open jaw's centre to the stem's surface at the contact [m], as knot-algorithm-1.yaml."""
 
 
 class Row(NamedTuple):
@@ -111,7 +113,7 @@ def plan(scene: Any, x: float, y: float, mirror: bool, half_spacing: float | Non
     grasper_problem = _within(scene, "endobot_2", q2)
     best: tuple[int, Row] | None = None
     for h in HEIGHTS:
-        c = stem_contact(b1, (t2, o2), h, side, 2.5e-3)
+        c = stem_contact(b1, (t2, o2), h, side, 2.5e-3, jaw_half_width=JAW_GAP)
         problems = _within(scene, "endobot_1", c.joints) or grasper_problem
         clear: dict[str, float] = {}
         for swept in ("needle-tip", "needle", "tool"):
