@@ -44,7 +44,7 @@ class ThreadTruth(IdealBackend):
 
 
 def test_summary_has_one_knot_per_stitch_and_the_stitch_metrics(tmp_path: Path) -> None:
-    from tests.test_evaluation import SITES, _thread
+    from test_evaluation import SITES, _thread
 
     be = ThreadTruth(_thread(SITES))
     it = Interpreter(_plan(), be, be.reset())
