@@ -111,6 +111,30 @@ def task_vector(q: Sequence[float] | FloatArray) -> FloatArray:
     return np.array((math.sin(q2) * q4, -math.sin(q1) * c2q4, math.cos(q1) * c2q4, q3))
 
 
+def _fill_jacobian(
+    j: FloatArray, q4: float, c1: float, s1: float, c2: float, s2: float
+) -> FloatArray:
+    """Write the analytical Jacobian (3.21) into ``j`` from the insertion [m] and the
+    cosines and sines of the yaw and pitch; returns ``j``."""
+    j[0, 0] = 0.0
+    j[0, 1] = q4 * c2
+    j[0, 2] = 0.0
+    j[0, 3] = s2
+    j[1, 0] = -q4 * c1 * c2
+    j[1, 1] = q4 * s1 * s2
+    j[1, 2] = 0.0
+    j[1, 3] = -s1 * c2
+    j[2, 0] = -q4 * s1 * c2
+    j[2, 1] = -q4 * c1 * s2
+    j[2, 2] = 0.0
+    j[2, 3] = c1 * c2
+    j[3, 0] = 0.0
+    j[3, 1] = 0.0
+    j[3, 2] = 1.0
+    j[3, 3] = 0.0
+    return j
+
+
 def task_vector_and_jacobian(
     q: Sequence[float] | FloatArray, out: FloatArray | None = None
 ) -> tuple[FloatArray, FloatArray]:
@@ -130,23 +154,7 @@ def task_vector_and_jacobian(
     c2, s2 = math.cos(q2), math.sin(q2)
     c2q4 = c2 * q4
     x = np.array((s2 * q4, -s1 * c2q4, c1 * c2q4, q3))
-    j = np.zeros((4, 4)) if out is None else out
-    j[0, 0] = 0.0
-    j[0, 1] = q4 * c2
-    j[0, 2] = 0.0
-    j[0, 3] = s2
-    j[1, 0] = -q4 * c1 * c2
-    j[1, 1] = q4 * s1 * s2
-    j[1, 2] = 0.0
-    j[1, 3] = -s1 * c2
-    j[2, 0] = -q4 * s1 * c2
-    j[2, 1] = -q4 * c1 * s2
-    j[2, 2] = 0.0
-    j[2, 3] = c1 * c2
-    j[3, 0] = 0.0
-    j[3, 1] = 0.0
-    j[3, 2] = 1.0
-    j[3, 3] = 0.0
+    j = _fill_jacobian(np.zeros((4, 4)) if out is None else out, q4, c1, s1, c2, s2)
     return x, j
 
 
@@ -223,24 +231,7 @@ def analytical_jacobian(
     q1, q2, _, q4 = _floats(q)
     c1, s1 = math.cos(q1), math.sin(q1)
     c2, s2 = math.cos(q2), math.sin(q2)
-    j = np.zeros((4, 4)) if out is None else out
-    j[0, 0] = 0.0
-    j[0, 1] = q4 * c2
-    j[0, 2] = 0.0
-    j[0, 3] = s2
-    j[1, 0] = -q4 * c1 * c2
-    j[1, 1] = q4 * s1 * s2
-    j[1, 2] = 0.0
-    j[1, 3] = -s1 * c2
-    j[2, 0] = -q4 * s1 * c2
-    j[2, 1] = -q4 * c1 * s2
-    j[2, 2] = 0.0
-    j[2, 3] = c1 * c2
-    j[3, 0] = 0.0
-    j[3, 1] = 0.0
-    j[3, 2] = 1.0
-    j[3, 3] = 0.0
-    return j
+    return _fill_jacobian(np.zeros((4, 4)) if out is None else out, q4, c1, s1, c2, s2)
 
 
 def geometric_jacobian(q: Sequence[float] | FloatArray) -> FloatArray:
