@@ -26,29 +26,21 @@ PROCS = ROOT / "tests" / "procedures"
 
 
 def _run(procedure: Path, sets: list[str], on_tick: Any, max_time_s: float) -> Any:
-    from backends import registry
-    from suture_engine.runtime.interpreter import Interpreter
-    from suture_engine.runtime.run import load_plan
+    """Run ``procedure`` on pybullet (seed 1) into a temporary folder; its summary."""
+    import tempfile
 
-    proc, plan = load_plan(procedure, sets)
-    be = registry.create("pybullet")
-    try:
-        first = be.reset(proc.scene, 1)
-        interp = Interpreter(
-            plan,
-            be,
-            first,
-            roles=proc.roles,
-            params=proc.params,
-            scene=proc.scene,
+    from suture_engine.runtime.run import run_procedure
+
+    with tempfile.TemporaryDirectory() as out:
+        return run_procedure(
+            procedure,
+            backend="pybullet",
+            seed=1,
+            sets=sets,
+            out=Path(out) / "run",
             max_time_s=max_time_s,
-            tension_limit_N=float(proc.scene.tension_limit),
             on_tick=on_tick,
-        )
-        summary = interp.run(proc.name, "pybullet")
-    finally:
-        be.close()
-    return summary
+        ).summary
 
 
 def tour(speed_mm_s: float) -> tuple[str, float, float, float]:
