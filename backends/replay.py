@@ -2,7 +2,9 @@
 
 No physics: at tick k, :meth:`ReplayBackend.observe` returns the encoder
 positions (``/joint_state/<robot>``) and base wrenches (``/base_wrench/<robot>``)
-recorded at tick k, so the engine recomputes its commands and events from the
+recorded at tick k, and the tool joints a trace records (``/tool_state/<robot>``: a
+bent-tip grasper's measured bend, as last recorded at or before tick k; straight when a
+trace, e.g. an older one, records none), so the engine recomputes its commands and events from the
 very measurements of the recorded run. :func:`recorded_operator_events` gives the
 recorded operator events so they can be fed back at the same ticks. A truncated
 trace (a killed run) is served up to its last complete tick.
@@ -77,6 +79,7 @@ class ReplayBackend:
         self._q: dict[str, dict[int, list[float]]] = {r: {} for r in self.robots}
         self._w: dict[str, dict[int, list[float]]] = {r: {} for r in self.robots}
         self.commands: dict[str, dict[int, list[float]]] = {r: {} for r in self.robots}
+        bends: dict[str, dict[int, tuple[float, float]]] = {}
         for msg in reader.messages():
             topic = msg.topic
             tick = round(msg.log_time_ns / self.period_ns)
@@ -89,6 +92,9 @@ class ReplayBackend:
                 )
             elif topic.startswith("/command/"):
                 self.commands.setdefault(topic[9:], {})[tick] = msg.data["values"]
+            elif topic.startswith("/tool_state/"):
+                bend = msg.data["bend"]
+                bends.setdefault(topic[12:], {})[tick] = (float(bend[0]), float(bend[1]))
         if not self.robots:
             self.robots = tuple(sorted(self._q))
         self.last_tick = self._last_complete_tick()
@@ -109,6 +115,8 @@ class ReplayBackend:
                 wa.flags.writeable = False
                 self._frozen[(r, k)] = (qa, wa)
         self.last_applied: Command | None = None
+        # per robot: the ticks at which the recorded bend changed, and the bends
+        self._bends = {r: (sorted(b), [b[k] for k in sorted(b)]) for r, b in bends.items() if b}
         self._tools: dict[str, ToolState] = {r: ToolState() for r in self.robots}
         self._geometry = SceneGeometry()
 
@@ -157,10 +165,23 @@ class ReplayBackend:
                 probe = RobotMeasurement(np.array(self._q[r][k]), np.array(self._w[r][k]))
                 frozen = self._frozen[(r, k)] = (probe.q, probe.base_wrench)
             tool = self._tools.get(r)
+            if r in self._bends:
+                tool = self._recorded_bend(r, k, tool if tool is not None else ToolState())
             robots[r] = RobotMeasurement.trusted(
                 frozen[0], frozen[1], tool if tool is not None else ToolState()
             )
         return Measurement(k, k * self.period_ns * 1e-9, robots)
+
+    def _recorded_bend(self, robot: str, tick: int, tool: ToolState) -> ToolState:
+        """``tool`` with the bend [rad] recorded last at or before ``tick``."""
+        import bisect
+
+        ticks, bends = self._bends[robot]
+        i = bisect.bisect_right(ticks, tick) - 1
+        bend = bends[i] if i >= 0 else (0.0, 0.0)
+        if bend == tool.bend:
+            return tool
+        return ToolState(tool.kind, tool.jaw_closed, tool.jaw2_closed, tool.hook_extension, bend)
 
     def apply(self, command: Command) -> None:
         """Keep the last command (the comparison reads the trace the engine writes) and

@@ -36,6 +36,7 @@ BUILTIN_SKILLS: dict[str, str] = {
     "grasp": "skills.grasp:Grasp",
     "release": "skills.release:Release",
     "hook": "skills.hook:Hook",
+    "bend": "skills.bend:Bend",
     "pass-jaws": "skills.pass_jaws:PassJaws",
     "rotate-about": "skills.rotate_about:RotateAbout",
     "wrap": "skills.wrap:Wrap",

@@ -81,6 +81,13 @@ def _tool_tip(sim: Any) -> Any:
     return sim.true_tool_pose()[0]
 
 
+def _towards(value: float, goal: float, step: float) -> float:
+    """``value`` moved towards ``goal`` by at most ``step`` (exactly ``goal`` once within)."""
+    if abs(goal - value) <= step:
+        return goal
+    return value + step if goal > value else value - step
+
+
 def _largest(values: Any) -> float:
     return float(values.max()) if len(values) else 0.0
 
@@ -126,10 +133,13 @@ class PyBulletBackend:
         stitch: names of the stitch's entry and exit points; None: ``entry``/``exit``,
             else the numbered pair nearest the wound's middle
             (:func:`backends.pybullet.scene.stitch_points`).
-        bend: the universal joint's angles (about x, then about the turned y) [rad] of
-            every mounted bent-tip grasper, fixed for the run; None: straight. The jaws
-            turn about a point ``tip_length`` (8 mm) behind the robot's tool tip, so the
-            bent jaws are off the tool tip that the robot's kinematics reports.
+        bend: the universal joint's start angles (about x, then about the turned y)
+            [rad] of every bent-tip grasper; None: straight. The jaws turn about a point
+            ``tip_length`` (8 mm) behind the robot's tool tip, so the bent jaws are off
+            the tool tip that the robot's kinematics reports. A tool command's ``bend``
+            then drives the joint towards its setpoint at :attr:`BEND_RATE` per axis,
+            and the tool state reports the joint's angles (its encoders), in both the
+            surgical and the robots-only world.
         base_error: perturbation: robot name -> displacement [m] of its actual base from
             the scene's declared base (a calibration error: the skills' model, from the
             declared geometry, is off by it).
@@ -143,6 +153,10 @@ class PyBulletBackend:
     name = "pybullet"
     SETTLE_S = 0.2
     """How long the surgical scene settles, robots held, before the first measurement [s]."""
+    BEND_RATE = 2.0
+    """Largest speed of each of the bent-tip grasper's universal joint axes [rad/s]."""
+    BENT_TIP = "bent-tip-grasper"
+    """The tool kind that has the universal joint."""
 
     def __init__(
         self,
@@ -168,6 +182,7 @@ class PyBulletBackend:
         self.robots: dict[str, Any] = {}
         self.tick = 0
         self._tools: dict[str, ToolState] = {}
+        self._bend_goal: dict[str, tuple[float, float]] = {}
         self._forces: list[tuple[str, np.ndarray, int]] = []
         self._hands: list[list[Any]] = []
         self._geometry = SceneGeometry()
@@ -208,6 +223,7 @@ class PyBulletBackend:
         self._p = p
         self.robots = {}
         self._tools = {}
+        self._bend_goal = {}
         self._forces = []
         self._hands = []
         self.tick = 0
@@ -221,7 +237,7 @@ class PyBulletBackend:
         if self._wants_surgical_scene(scene):
             self._build_surgical_scene(scene, seed, ft_model)
             for name, (pos, _rpy, tool) in sorted(self._bases(scene).items()):
-                self._tools[name] = self._measured_tool(name, tool)
+                self._tools[name] = self._start_bend(self._measured_tool(name, tool))
                 base_positions[name] = (float(pos[0]), float(pos[1]), float(pos[2]))
         else:
             client = p.connect(p.GUI if self.gui else p.DIRECT)
@@ -244,7 +260,7 @@ class PyBulletBackend:
                 if self.friction_scale != 1.0:
                     sim.scale_friction(self.friction_scale)
                 self.robots[name] = sim
-                self._tools[name] = ToolState(kind=tool)
+                self._tools[name] = self._start_bend(ToolState(kind=tool))
                 base_positions[name] = (float(pos[0]), float(pos[1]), float(pos[2]))
         # One step held by gravity torques so the base sensors read the weight (PyBullet
         # computes joint reaction forces in the step), then put the joints back.
@@ -314,6 +330,31 @@ class PyBulletBackend:
                 # build_scene makes ideal base sensors; give them the scene's noise and delay.
                 sim._ft = Sensor(ft_model, 6, np.random.default_rng(seed * 1000 + i))
             self.robots[name] = sim
+
+    def _start_bend(self, state: ToolState) -> ToolState:
+        """A bent-tip grasper's state with the ``bend`` option's start angles [rad]."""
+        if state.kind != self.BENT_TIP or self.bend is None:
+            return state
+        bend = (float(self.bend[0]), float(self.bend[1]))
+        return ToolState(
+            state.kind, state.jaw_closed, state.jaw2_closed, state.hook_extension, bend
+        )
+
+    def _step_bends(self) -> None:
+        """Move each universal joint towards its setpoint by at most BEND_RATE * dt [rad]
+        per axis; the surgical scene's bent-tip grasper turns its jaws with it."""
+        step = self.BEND_RATE * self.dt
+        for name, goal in self._bend_goal.items():
+            t = self._tools[name]
+            if t.bend == goal:
+                continue
+            bend = (_towards(t.bend[0], goal[0], step), _towards(t.bend[1], goal[1], step))
+            self._tools[name] = ToolState(
+                t.kind, t.jaw_closed, t.jaw2_closed, t.hook_extension, bend
+            )
+            tool = self.scene.tools.get(name) if self.scene is not None else None
+            if tool is not None and hasattr(tool, "set_bend"):
+                tool.set_bend(*bend)
 
     def _measured_tool(self, name: str, kind: str) -> ToolState:
         """The tool's state as its sensors report it, from the simulated tool.
@@ -410,8 +451,8 @@ class PyBulletBackend:
         if tool is None or not getattr(tool, "passing", False):
             return state
         if tool.needle_holder == 0:
-            return ToolState(state.kind, state.jaw_closed, False, state.hook_extension)
-        return ToolState(state.kind, False, state.jaw2_closed, state.hook_extension)
+            return ToolState(state.kind, state.jaw_closed, False, state.hook_extension, state.bend)
+        return ToolState(state.kind, False, state.jaw2_closed, state.hook_extension, state.bend)
 
     def observe(self) -> Measurement:
         """Encoders and base F/T sensors of every robot."""
@@ -444,7 +485,10 @@ class PyBulletBackend:
                     t.jaw_closed if rc.tool.jaw_closed is None else rc.tool.jaw_closed,
                     t.jaw2_closed if rc.tool.jaw2_closed is None else rc.tool.jaw2_closed,
                     t.hook_extension if rc.tool.hook_extension is None else rc.tool.hook_extension,
+                    t.bend,
                 )
+                if rc.tool.bend is not None and t.kind == self.BENT_TIP:
+                    self._bend_goal[name] = (float(rc.tool.bend[0]), float(rc.tool.bend[1]))
                 if self.scene is not None:
                     self._drive_tool(name, t, self._tools[name])
 
@@ -501,6 +545,8 @@ class PyBulletBackend:
                 p.WORLD_FRAME,
                 physicsClientId=self.client,
             )
+        if self._bend_goal:
+            self._step_bends()
         self._physics_step()
         self.tick += 1
 

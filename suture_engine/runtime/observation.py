@@ -67,16 +67,19 @@ class ToolState:
     """The measured state of one robot's tool.
 
     Attributes:
-        kind: tool type ("grasper", "hook-grasper", "bent-grasper", "stitcher").
+        kind: tool type ("grasper", "hook-grasper", "bent-tip-grasper", "stitcher").
         jaw_closed: whether the (first) jaw is closed.
         jaw2_closed: whether the stitcher's second jaw is closed (False otherwise).
         hook_extension: flexible-hook extension [m] (0 when retracted or absent).
+        bend: the bent-tip grasper's universal joint angles from its encoders, about the
+            shaft's x then about the turned y [rad, rad] ((0, 0): straight or absent).
     """
 
     kind: str = "grasper"
     jaw_closed: bool = False
     jaw2_closed: bool = False
     hook_extension: float = 0.0
+    bend: tuple[float, float] = (0.0, 0.0)
 
 
 @dataclass(frozen=True)
@@ -245,11 +248,14 @@ class ToolCommand:
         jaw_closed: close (True) or open (False) the (first) jaw.
         jaw2_closed: close or open the stitcher's second jaw.
         hook_extension: flexible-hook extension setpoint [m].
+        bend: the bent-tip grasper's universal joint setpoint, about the shaft's x then
+            about the turned y [rad, rad]; the joint moves towards it at a bounded rate.
     """
 
     jaw_closed: bool | None = None
     jaw2_closed: bool | None = None
     hook_extension: float | None = None
+    bend: tuple[float, float] | None = None
 
 
 @dataclass(frozen=True)

@@ -4,8 +4,10 @@ Every tick: ``/joint_state/<robot>`` (encoder positions and *estimated*
 velocities), ``/base_wrench/<robot>``, ``/command/<robot>`` (the torques
 applied and the robot's mode), ``/tension/estimated`` and, when the backend has
 them, ``/ground_truth/tension`` (every tick) and ``/ground_truth/suture``
-(every ``centerline_every`` ticks). On events: ``/transitions``, ``/events``,
-``/operator``. Time is simulation time: tick * period [ns].
+(every ``centerline_every`` ticks), ``/tool_state/<robot>`` (the measured bend of a
+bent-tip grasper's universal joint, on the ticks it changes: never while it stays
+straight, so the traces of runs without a bend are unchanged). On events:
+``/transitions``, ``/events``, ``/operator``. Time is simulation time: tick * period [ns].
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ def _floats(values: Any) -> list[float]:
 
 
 _F64 = np.dtype(np.float64)
+_STRAIGHT = (0.0, 0.0)
 
 
 class Recorder:
@@ -144,6 +147,7 @@ class TraceRecorder(Recorder):
         self._queued: list[tuple[str, bytes]] = []
         self._queued_ns = 0
         self._wall_clock = self.writer.include_wall_clock
+        self._bends: dict[str, tuple[float, float]] = {}
 
     # -- the per-tick fast path -------------------------------------------------------------
 
@@ -189,6 +193,12 @@ class TraceRecorder(Recorder):
         if not fast:
             self._tick_generic(batch, obs, torques, modes, tension, robot_name, true_tension)
         self.writer.write_encoded(time_ns, batch)
+        for name, robot in obs.robots.items():
+            bend = robot.tool.bend
+            if bend != self._bends.get(name, _STRAIGHT):
+                self._bends[name] = bend
+                topic = self._ch.tool_state_topic(name)
+                self.writer.write(topic, time_ns, {"bend": [float(bend[0]), float(bend[1])]})
         # The centerline is looked up on its ticks only: a backend may compute it lazily.
         centerline = ground_truth.get("centerline") if self._n % self._every == 0 else None
         if centerline is not None:

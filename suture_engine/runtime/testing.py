@@ -38,6 +38,11 @@ DEFAULT_Q = (0.0, 0.2, 0.0, 0.12)
 _WEIGHT_N = 20.0
 
 
+def _angles(bend: Any) -> tuple[float, float]:
+    """Two joint angles [rad] as a tuple of floats."""
+    return (float(bend[0]), float(bend[1]))
+
+
 class IdealBackend:
     """A model-only backend (see the module docstring).
 
@@ -46,6 +51,8 @@ class IdealBackend:
         q0: start pose per robot (default :data:`DEFAULT_Q`).
         dt: control period [s].
         damping: viscous joint damping [N*m*s/rad, N*s/m].
+        tools: tool kind per robot ("bent-tip-grasper", ...); a robot not named reports
+            a "grasper". The tools follow their commands at once (jaws, hook, bend).
     """
 
     name = "ideal"
@@ -56,8 +63,10 @@ class IdealBackend:
         q0: Mapping[str, tuple[float, ...]] | None = None,
         dt: float = 1e-3,
         damping: float = 0.05,
+        tools: Mapping[str, str] | None = None,
     ) -> None:
         self.robots = robots
+        self._kinds = dict(tools or {})
         self._q0 = dict(q0 or {})
         self.dt = dt
         self.damping = damping
@@ -80,7 +89,8 @@ class IdealBackend:
             self.q[r] = np.array(self._q0.get(r, DEFAULT_Q), dtype=np.float64)
             self.qd[r] = np.zeros(N_JOINTS)
             self.tau[r] = np.zeros(N_JOINTS)
-            self.tools[r] = ToolState()
+            kind = self._kinds.get(r)
+            self.tools[r] = ToolState() if kind is None else ToolState(kind=kind)
         return self.observe()
 
     def _force(self, robot: str) -> np.ndarray:
@@ -113,6 +123,7 @@ class IdealBackend:
                     t.jaw_closed if rc.tool.jaw_closed is None else rc.tool.jaw_closed,
                     t.jaw2_closed if rc.tool.jaw2_closed is None else rc.tool.jaw2_closed,
                     t.hook_extension if rc.tool.hook_extension is None else rc.tool.hook_extension,
+                    t.bend if rc.tool.bend is None else _angles(rc.tool.bend),
                 )
 
     def apply_external_force(

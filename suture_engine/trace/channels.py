@@ -18,6 +18,8 @@ Channels (``<robot>`` is a robot name such as ``left`` or ``right``):
 ``/joint_state/<robot>``   joint positions [rad] and estimated velocities [rad/s]
 ``/command/<robot>``       the command applied: kind (torque, velocity, position), values
 ``/base_wrench/<robot>``   base force/torque sensor: force [N], torque [N*m]
+``/tool_state/<robot>``    measured tool joints when they change: the bent-tip grasper's
+                           universal joint angles ``bend`` [rad] (none while straight)
 ``/tension/estimated``     suture tension estimated from the measurements [N]
 ``/qp/<robot>``            move-constrained QP: status, iterations, active constraints
                            (solve time [us] is wall-clock data: dropped by default)
@@ -68,6 +70,7 @@ __all__ = [
     "command_topic",
     "joint_state_topic",
     "qp_topic",
+    "tool_state_topic",
     "schema_bytes",
     "spec_for",
     "validation_schema",
@@ -304,6 +307,23 @@ CATALOGUE: tuple[ChannelSpec, ...] = (
         "The base F/T sensor reading.",
     ),
     ChannelSpec(
+        "/tool_state/<robot>",
+        "suture_engine.ToolState",
+        _obj(
+            "Measured tool joints",
+            {
+                "bend": _vec(
+                    "universal joint angles from the encoders, about the shaft's x then "
+                    "about the turned y [rad]",
+                    2,
+                ),
+            },
+            ["bend"],
+        ),
+        "The bent-tip grasper's measured universal joint, written when it changes (never "
+        "while it stays straight from the start).",
+    ),
+    ChannelSpec(
         TENSION_ESTIMATED,
         "suture_engine.Tension",
         _obj(
@@ -445,6 +465,11 @@ def command_topic(robot: str) -> str:
 def base_wrench_topic(robot: str) -> str:
     """``/base_wrench/<robot>``."""
     return _BY_PATTERN["/base_wrench/<robot>"].topic(robot)
+
+
+def tool_state_topic(robot: str) -> str:
+    """``/tool_state/<robot>``."""
+    return _BY_PATTERN["/tool_state/<robot>"].topic(robot)
 
 
 def qp_topic(robot: str) -> str:
