@@ -1,27 +1,38 @@
-"""The fault campaign (issue #8): many runs of a bundled procedure with random faults.
+"""The fault campaign (issue #8): runs of bundled procedures with random faults.
 
-Each run is ``suture run procedures/stitch.yaml --fault SPEC`` in its own process
-(``--workers`` at a time), with one random fault drawn from the run's seed (kind
-in turn, then target, magnitude and trigger: a time, a step entered, or random
-with its own seed). Every run is classified from its summary and its trace, and
-the script prints a table of outcome counts per fault kind, the tension-limit
-violations read from the traces (true tension, where the backend has a thread;
-the estimate, apart) and the crashes.
+Each run is ``suture run procedures/X.yaml --fault SPEC`` in its own process
+(``--workers`` at a time), with one random fault drawn from the run's seed. The
+jobs cycle over procedure x fault kind (run ``i`` goes to procedure ``i mod P``;
+each procedure takes the kinds in turn); the robot, magnitude and trigger (a
+time, a step entered, or random with its own seed) are drawn. Every run is
+classified from its summary and its trace (succeeded, failed after retries,
+aborted by policy: an abort step, a lock waiting for the surgeon, or the run's
+time limit; or a crash), and the script prints the outcome counts per fault kind
+and per procedure, the tension-limit violations read from the traces (true
+tension, where the backend has a thread; the estimate, apart) and the crashes.
 
-Why ``stitch.yaml`` on the ``ideal`` backend: it is the shortest bundled procedure
-that moves both skills of a stitch (a 9 s approach, then the bite and the pull;
-about 15 s simulated, 5 s of CPU on the ideal backend against 11 s on ``pybullet``
-and 30 s on ``pybullet-surgical``), so 200 runs fit in 30 minutes on 2 cores.
+Before the faulted runs, each procedure runs once fault-free on the backend (its
+*baseline*, kept in ``OUT/baseline.csv``): its outcome is the reference, and its
+simulated duration sets the procedure's time limit (the duration plus the sum of
+its steps' timeouts, rounded up to 10 s, unless ``--max-time``) and the window
+fault times are drawn from (``[0, duration]``). So a run that reaches the time
+limit is an arm that crawls, not a short budget.
+
+Default procedures: ``stitch``, ``square-knot``, ``shared-control-line`` and
+``shared-control-circle`` (fault-free on ``pybullet`` all four succeed; on
+``ideal`` the square knot locks, as the thread-less backend cannot tie it).
 Grasp slip and snag need the thread: with ``--surgical N`` they run N times each
 on ``pybullet-surgical`` (when that backend has the ``inject_grasp_slip`` and
-``inject_snag`` hooks), with a 15 s time limit.
+``inject_snag`` hooks) on ``stitch.yaml``, with ``--surgical-max-time`` (the
+stitch takes about 17.4 s simulated there).
 
 Usage:
-    nice python benchmarks/fault_campaign.py [--runs 200] [--workers 2] [--seed 0]
+    nice python benchmarks/fault_campaign.py [--runs 200] [--backend pybullet]
+        [--procedures stitch square-knot ...] [--workers 1] [--seed 0]
         [--surgical 0] [--out DIR] [--keep-traces] [--csv FILE]
 
 Rows are appended to the CSV as runs end: an interrupted campaign resumes where it
-stopped (same ``--runs``, ``--seed`` and ``--surgical``, the CSV of the first start).
+stopped (same arguments, the CSV of the first start).
 """
 
 from __future__ import annotations
@@ -29,6 +40,7 @@ from __future__ import annotations
 import argparse
 import csv
 import dataclasses
+import math
 import os
 import resource
 import tempfile
@@ -39,6 +51,7 @@ from suture_engine.faults.campaign import (
     CampaignJob,
     CampaignRow,
     Target,
+    baseline_job,
     format_table,
     make_jobs,
     run_campaign,
@@ -46,67 +59,121 @@ from suture_engine.faults.campaign import (
 from suture_engine.faults.model import FAULT_KINDS
 
 ROOT = Path(__file__).resolve().parents[1]
-STITCH = ROOT / "procedures" / "stitch.yaml"
+PROCEDURES = ROOT / "procedures"
+STITCH = PROCEDURES / "stitch.yaml"
+DEFAULT_PROCEDURES = ("stitch", "square-knot", "shared-control-line", "shared-control-circle")
 ROBOTS = ("endobot_1", "endobot_2")
 THREAD_KINDS = ("grasp-slip", "snag")
+BASELINE_MAX_TIME_S = 900.0
+
+
+def procedure_path(name: str) -> Path:
+    """``stitch``, ``stitch.yaml`` or a path: the procedure file."""
+    path = Path(name)
+    if path.is_file():
+        return path.resolve()
+    stem = name[:-5] if name.endswith(".yaml") else name
+    return PROCEDURES / f"{stem}.yaml"
+
+
+def plan_steps(procedure: Path) -> tuple[tuple[str, ...], float]:
+    """The procedure's step names and the sum of their timeouts [s]."""
+    from suture_engine.runtime.run import load_plan
+
+    _, plan = load_plan(procedure)
+    steps = tuple(plan.steps)
+    timeouts = sum(float(s.timeout_s or 0.0) for s in plan.steps.values())
+    return steps, timeouts
+
+
+def time_limit(duration_s: float, timeouts_s: float) -> float:
+    """The faulted runs' time limit [s]: the fault-free duration plus the sum of the
+    step timeouts, rounded up to 10 s."""
+    return 10.0 * math.ceil((duration_s + timeouts_s) / 10.0)
+
+
+def baselines(
+    procedures: list[Path], backend: str, seed: int, out: Path, workers: int
+) -> dict[str, CampaignRow]:
+    """The fault-free run of each procedure (read back from ``OUT/baseline.csv``)."""
+    path = out / "baseline.csv"
+    done = {r.procedure: r for r in read_rows(path).values()}
+    todo = []
+    for n, proc in enumerate(procedures):
+        if proc.name in done:
+            continue
+        steps, _ = plan_steps(proc)
+        target = Target(proc, backend, (), steps, ROBOTS, 0.0, BASELINE_MAX_TIME_S)
+        todo.append(baseline_job(target, n, seed, out / "baseline" / proc.stem))
+    if todo:
+        print(f"fault-free baselines: {', '.join(j.target.procedure.name for j in todo)}")
+        rows = run_campaign(todo, workers=workers)
+        write_rows(path, rows)
+        done.update({r.procedure: r for r in rows})
+    return done
 
 
 def targets(
-    surgical: int, backend: str = "ideal", surgical_max_time: float = 30.0
-) -> list[tuple[Target, int]]:
-    """(target, share) pairs: the stitch on ``backend``, and the surgical one if asked.
-
-    ``surgical_max_time`` [s]: the surgical runs' time limit (the stitch takes about 17 s
-    simulated on ``pybullet-surgical``; the first campaign's 15 s cut every run before its end).
-    """
-    from suture_engine.runtime.run import load_plan
-
-    _, plan = load_plan(STITCH)
-    steps = tuple(plan.steps)
-    ideal = Target(
-        STITCH,
-        backend,
-        tuple(k for k in FAULT_KINDS if k not in THREAD_KINDS),
-        steps,
-        ROBOTS,
-        horizon_s=12.0,
-        max_time_s=40.0,
-    )
-    out = [(ideal, 0)]
-    if surgical > 0:
-        from backends.pybullet.backend import SurgicalPyBulletBackend
-
-        hooks = all(
-            hasattr(SurgicalPyBulletBackend, h) for h in ("inject_grasp_slip", "inject_snag")
-        )
-        if hooks:
-            out.append(
-                (
-                    Target(
-                        STITCH,
-                        "pybullet-surgical",
-                        THREAD_KINDS,
-                        steps,
-                        ROBOTS,
-                        10.0,
-                        surgical_max_time,
-                    ),
-                    surgical * len(THREAD_KINDS),
-                )
+    procedures: list[Path],
+    backend: str,
+    base: dict[str, CampaignRow],
+    max_time: float | None,
+) -> list[Target]:
+    """One target per procedure on ``backend``, its time limit and fault window from its
+    baseline."""
+    out = []
+    for proc in procedures:
+        steps, timeouts = plan_steps(proc)
+        duration = base[proc.name].sim_time_s
+        limit = max_time if max_time is not None else time_limit(duration, timeouts)
+        out.append(
+            Target(
+                proc,
+                backend,
+                tuple(k for k in FAULT_KINDS if k not in THREAD_KINDS),
+                steps,
+                ROBOTS,
+                horizon_s=round(max(duration, 1.0), 1),
+                max_time_s=limit,
             )
-        else:
-            print("pybullet-surgical has no inject_grasp_slip / inject_snag: no thread faults")
+        )
     return out
+
+
+def surgical_target(surgical_max_time: float) -> Target | None:
+    """The stitch on ``pybullet-surgical`` with the thread faults, if it has the hooks."""
+    from backends.pybullet.backend import SurgicalPyBulletBackend
+
+    hooks = all(hasattr(SurgicalPyBulletBackend, h) for h in ("inject_grasp_slip", "inject_snag"))
+    if not hooks:
+        print("pybullet-surgical has no inject_grasp_slip / inject_snag: no thread faults")
+        return None
+    steps, _ = plan_steps(STITCH)
+    return Target(STITCH, "pybullet-surgical", THREAD_KINDS, steps, ROBOTS, 10.0, surgical_max_time)
 
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--runs", type=int, default=200, help="runs on --backend")
+    ap.add_argument("--runs", type=int, default=200, help="faulted runs on --backend")
     ap.add_argument(
         "--backend",
         choices=("ideal", "pybullet"),
-        default="ideal",
-        help="backend of the --runs runs (pybullet: the simulated robots, no thread)",
+        default="pybullet",
+        help="backend of the --runs runs (pybullet: the simulated robots with friction and "
+        "sensors, no thread)",
+    )
+    ap.add_argument(
+        "--procedures",
+        nargs="+",
+        default=list(DEFAULT_PROCEDURES),
+        help="procedures (names in procedures/ or paths); the runs cycle over them",
+    )
+    ap.add_argument(
+        "--max-time",
+        type=float,
+        default=None,
+        help="time limit of every --runs run [s] (default: per procedure, its fault-free "
+        "duration plus its step timeouts)",
     )
     ap.add_argument(
         "--surgical-max-time",
@@ -114,7 +181,7 @@ def main() -> None:
         default=30.0,
         help="time limit of the surgical runs [s]",
     )
-    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--seed", type=int, default=0, help="base seed of the fault draws")
     ap.add_argument("--surgical", type=int, default=0, help="runs per thread fault kind")
     ap.add_argument("--out", type=Path, default=None, help="run folders (default: a temp dir)")
@@ -129,14 +196,42 @@ def main() -> None:
     args = ap.parse_args()
 
     out = args.out or Path(tempfile.mkdtemp(prefix="fault-campaign-"))
-    jobs: list[CampaignJob] = []
-    for n, (target, share) in enumerate(
-        targets(args.surgical, args.backend, args.surgical_max_time)
-    ):
-        count = args.runs if share == 0 else share
-        batch = make_jobs([target], count, args.seed + 1000 * n, out / target.backend)
-        jobs += [j._replace(number=len(jobs) + k) for k, j in enumerate(batch)]
     out.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    jobs: list[CampaignJob] = []
+    base: dict[str, CampaignRow] = {}
+    if args.runs > 0:
+        procedures = [procedure_path(p) for p in args.procedures]
+        missing = [str(p) for p in procedures if not p.is_file()]
+        if missing:
+            raise SystemExit(f"no such procedure: {', '.join(missing)}")
+        base = baselines(procedures, args.backend, args.seed, out, args.workers)
+        crashed = [r for r in base.values() if r.outcome == "crash"]
+        if crashed:
+            raise SystemExit(f"a fault-free run crashed: {crashed}")
+        plan = targets(procedures, args.backend, base, args.max_time)
+        print(
+            "| procedure | fault-free outcome | simulated [s] | time limit [s] | fault window [s] |"
+        )
+        print("|---|---|---|---|---|")
+        for t in plan:
+            b = base[t.procedure.name]
+            print(
+                f"| {t.procedure.stem} | {b.outcome} | {b.sim_time_s:.1f} | {t.max_time_s:g} | "
+                f"0-{t.horizon_s:g} |"
+            )
+        jobs += make_jobs(plan, args.runs, args.seed, out / args.backend)
+    if args.surgical > 0:
+        surgical = surgical_target(args.surgical_max_time)
+        if surgical is not None:
+            batch = make_jobs(
+                [surgical],
+                args.surgical * len(THREAD_KINDS),
+                args.seed + 1000,
+                out / surgical.backend,
+            )
+            jobs += [j._replace(number=len(jobs) + k) for k, j in enumerate(batch)]
     csv_path = args.csv or out / "campaign.csv"
     done_rows = read_rows(csv_path)
     todo = [j for j in jobs if j.number not in done_rows]
@@ -144,8 +239,6 @@ def main() -> None:
         f"{len(jobs)} runs ({len(done_rows)} already in {csv_path}), {args.workers} workers, "
         f"output {out}"
     )
-    start = time.perf_counter()
-    cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     fields = [f.name for f in dataclasses.fields(CampaignRow)]
     new_file = not csv_path.is_file() or csv_path.stat().st_size == 0
     with csv_path.open("a", newline="", encoding="utf-8") as fh:
@@ -157,12 +250,12 @@ def main() -> None:
             writer.writerow(dataclasses.asdict(row))
             fh.flush()
             done_rows[row.index] = row
-            if row.outcome == "crash" or len(done_rows) % 20 == 0:
-                print(
-                    f"  [{len(done_rows)}/{len(jobs)}] run {row.index} {row.kind}: "
-                    f"{row.outcome} {row.error}",
-                    flush=True,
-                )
+            print(
+                f"  [{len(done_rows)}/{len(jobs)} {(time.perf_counter() - start) / 60:.1f} min] "
+                f"run {row.index} {row.procedure} {row.kind}: {row.outcome} "
+                f"({row.sim_time_s:.1f} s simulated) {row.error}",
+                flush=True,
+            )
 
         run_campaign(todo, workers=args.workers, keep_traces=args.keep_traces, on_row=progress)
     elapsed = time.perf_counter() - start
@@ -171,6 +264,8 @@ def main() -> None:
     rows = [done_rows[j.number] for j in jobs if j.number in done_rows]
     print()
     print(format_table(rows))
+    print()
+    print(format_table(rows, by="procedure"))
     crashes = [r for r in rows if r.outcome == "crash"]
     violations = sum(r.true_violations > 0 for r in rows)
     with_truth = sum(r.max_true_tension_N == r.max_true_tension_N for r in rows)
@@ -188,6 +283,18 @@ def main() -> None:
     print(f"runs whose trace records no fault onset: {sum(r.fault_records == 0 for r in rows)}")
     for r in crashes:
         print(f"  crash: run {r.index} --fault {r.fault!r} exit {r.exit_code}: {r.error}")
+
+
+def write_rows(path: Path, rows: list[CampaignRow]) -> None:
+    """Append rows to a campaign CSV (with its header if new)."""
+    fields = [f.name for f in dataclasses.fields(CampaignRow)]
+    new_file = not path.is_file() or path.stat().st_size == 0
+    with path.open("a", newline="", encoding="utf-8") as fh:
+        writer = csv.DictWriter(fh, fieldnames=fields)
+        if new_file:
+            writer.writeheader()
+        for row in rows:
+            writer.writerow(dataclasses.asdict(row))
 
 
 def read_rows(path: Path) -> dict[int, CampaignRow]:

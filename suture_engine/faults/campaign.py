@@ -1,18 +1,30 @@
 """The fault campaign: many runs with random faults, each classified from its trace.
 
-Run ``i`` draws its fault from ``numpy.random.SeedSequence([base_seed, i])``: the
-kind cycles through the campaign's kinds (so each kind gets its share of runs);
-the target, magnitude, trigger (a time, a step entered, or random with a seed)
-and the run's seed are drawn. Each run is a real ``suture run ... --fault SPEC``
-in its own process (a crash of one run is seen as a crash, never takes the
-campaign down), and is then classified:
+Run ``i`` goes to target (procedure on a backend) ``i mod T`` and draws its fault
+from ``numpy.random.SeedSequence([base_seed, i])``: within a target the kind
+cycles through the target's kinds, so the jobs cycle over procedure x fault kind
+(``T * K`` consecutive jobs hold every pair once); the robot, magnitude, trigger
+(a time, a step entered, or random with a seed) and the run's seed are drawn.
+Each run is a real ``suture run ... --fault SPEC`` in its own process (a crash of
+one run is seen as a crash, never takes the campaign down), and is then
+classified into the issue's three outcomes, the third one split by the policy
+that ended the run:
 
-- ``succeeded``, ``failed`` (failed after its retries, to a failure terminal),
-  ``aborted`` (by policy), ``locked`` (the monitor or the policy locked and the
-  run waits for a surgeon), ``time-limit`` (cut at ``max_time_s``);
+- ``succeeded``: the procedure reached its success terminal;
+- ``failed after retries``: it reached a failure terminal;
+- ``aborted by policy: abort``: a step's policy (or the operator) aborted it;
+- ``aborted by policy: lock``: the monitor's emergency lock, or a step's
+  ``then: lock`` after its retries, locked the robots to wait for the surgeon;
+  the campaign has no surgeon, so the run stops there, locked (the safe state);
+- ``aborted by policy: time limit``: the run's simulated-time budget
+  (``--max-time``, set above the fault-free duration plus the step timeouts)
+  ran out; the runtime's summary says ``failed`` with ``metrics.stopped`` "time
+  limit ... reached", and the campaign counts that budget as a policy of the run;
 - a **crash**: an exit code other than 0 / 1, a traceback in the output, an
   invalid-input exit (the campaign's specs are valid), or a missing or
   unreadable trace or summary.
+
+A job with an empty fault is a fault-free *baseline* run (kind ``none``).
 
 Its trace is read for tension-limit violations: ticks where the simulator's true
 tension (``/ground_truth/tension``, backends with a thread) is above the scene's
@@ -42,13 +54,18 @@ from suture_engine.faults.model import FAULT_KINDS, JOINTS, Fault
 from suture_engine.faults.syntax import format_fault
 
 __all__ = [
+    "ABORTED",
     "OUTCOMES",
+    "OUTCOME_CLASSES",
+    "TABLE_HEAD",
     "CampaignJob",
     "CampaignRow",
     "Target",
+    "baseline_job",
     "classify",
     "format_table",
     "make_jobs",
+    "outcome_class",
     "random_fault",
     "run_campaign",
     "run_job",
@@ -56,8 +73,18 @@ __all__ = [
     "trace_violations",
 ]
 
-OUTCOMES = ("succeeded", "failed", "aborted", "locked", "time-limit")
+ABORTED = "aborted by policy"
+"""The issue's third outcome; its sub-outcomes start with this prefix."""
+OUTCOMES = (
+    "succeeded",
+    "failed after retries",
+    f"{ABORTED}: abort",
+    f"{ABORTED}: lock",
+    f"{ABORTED}: time limit",
+)
 """The classified outcomes, in table order."""
+OUTCOME_CLASSES = ("succeeded", "failed after retries", ABORTED)
+"""The issue's three classified outcomes (each outcome of :data:`OUTCOMES` is in one)."""
 
 
 @dataclass(frozen=True)
@@ -125,6 +152,7 @@ class CampaignRow:
         estimate_over_limit: ticks with the estimated tension above the limit.
         fault_records: fault onsets recorded in the trace.
         error: why the run is a crash ("" otherwise).
+        sim_time_s: the simulated time the run lasted (NaN for a crash) [s].
     """
 
     index: int
@@ -144,6 +172,7 @@ class CampaignRow:
     estimate_over_limit: int = 0
     fault_records: int = 0
     error: str = ""
+    sim_time_s: float = math.nan
 
 
 def _when_or_at(rng: np.random.Generator, target: Target, data: dict[str, Any]) -> None:
@@ -272,19 +301,38 @@ def trace_violations(trace: Path, limit_N: float) -> tuple[float, int, float, in
 
 
 def classify(summary: dict[str, Any]) -> str:
-    """The campaign outcome of a run's ``summary.json``."""
+    """The campaign outcome (one of :data:`OUTCOMES`) of a run's ``summary.json``.
+
+    The runtime's summary says ``succeeded``, ``aborted`` or ``failed``; a ``failed``
+    run is split by ``metrics.stopped`` and the final state: stopped by the time
+    limit, locked (waiting for a surgeon), or at a failure terminal.
+    """
     outcome = str(summary.get("outcome", ""))
     stopped = str((summary.get("metrics") or {}).get("stopped", ""))
     if outcome == "succeeded":
         return "succeeded"
     if outcome == "aborted":
-        return "aborted"
+        return f"{ABORTED}: abort"
     if stopped.startswith("time limit"):
-        return "time-limit"
+        return f"{ABORTED}: time limit"
     final = str(summary.get("final_state", ""))
     if final == "lock" or final.endswith("_notbe") or "locked" in stopped:
-        return "locked"
-    return "failed"
+        return f"{ABORTED}: lock"
+    return "failed after retries"
+
+
+def outcome_class(outcome: str) -> str:
+    """The issue's outcome (one of :data:`OUTCOME_CLASSES`) of a campaign outcome, or
+    ``crash``."""
+    if outcome.startswith(ABORTED):
+        return ABORTED
+    return outcome
+
+
+def baseline_job(target: Target, number: int, seed: int, out_dir: Path) -> CampaignJob:
+    """A fault-free run of ``target`` (kind ``none``): its outcome and simulated time
+    are the reference of the faulted runs."""
+    return CampaignJob(number, target, seed, "", "none", out_dir)
 
 
 def run_job(job: CampaignJob, python: str = sys.executable) -> CampaignRow:
@@ -305,9 +353,9 @@ def run_job(job: CampaignJob, python: str = sys.executable) -> CampaignRow:
         str(t.max_time_s),
         "--out",
         str(job.out_dir),
-        "--fault",
-        job.fault,
     ]
+    if job.fault:
+        cmd += ["--fault", job.fault]
     env = {**os.environ, "COLUMNS": "200", "NO_COLOR": "1"}
 
     def crash(code: int, error: str) -> CampaignRow:
@@ -343,6 +391,7 @@ def run_job(job: CampaignJob, python: str = sys.executable) -> CampaignRow:
         max_estimated_tension_N=est_max,
         estimate_over_limit=est_over,
         fault_records=onsets,
+        sim_time_s=float(summary.get("sim_time_s", math.nan)),
     )
 
 
@@ -398,14 +447,17 @@ class _Tally:
     crashes: int = 0
     true_violation_runs: int = 0
     estimate_runs: int = 0
+    with_thread: int = 0
 
 
-def tally(rows: Sequence[CampaignRow]) -> dict[str, _Tally]:
-    """Counts per fault kind (and ``all``)."""
+def tally(rows: Sequence[CampaignRow], by: str = "kind") -> dict[str, _Tally]:
+    """Counts per fault kind (``by="kind"``) or per procedure (``by="procedure"``), and
+    ``all``."""
     out: dict[str, _Tally] = {}
     for row in rows:
-        for key in (f"{row.kind}", "all"):
-            t = out.setdefault(key, _Tally())
+        key = row.kind if by == "kind" else row.procedure
+        for k in (key, "all"):
+            t = out.setdefault(k, _Tally())
             t.runs += 1
             if row.outcome == "crash":
                 t.crashes += 1
@@ -413,20 +465,53 @@ def tally(rows: Sequence[CampaignRow]) -> dict[str, _Tally]:
                 t.outcomes[row.outcome] += 1
             t.true_violation_runs += row.true_violations > 0
             t.estimate_runs += row.estimate_over_limit > 0
-    order = [k for k in FAULT_KINDS if k in out] + ["all"]
-    return {k: out[k] for k in order if k in out}
+            t.with_thread += math.isfinite(row.max_true_tension_N)
+    if by == "kind":
+        order = [k for k in ("none", *FAULT_KINDS) if k in out]
+    else:
+        order = sorted(k for k in out if k != "all")
+    return {k: out[k] for k in [*order, "all"] if k in out}
 
 
-def format_table(rows: Sequence[CampaignRow]) -> str:
-    """The outcome counts per fault kind as a Markdown table."""
-    head = ["fault kind", "runs", *OUTCOMES, "crashes", "limit violations", "estimate > limit"]
+TABLE_HEAD = (
+    "runs",
+    "succeeded",
+    "failed after retries",
+    "aborted by policy",
+    "(abort)",
+    "(lock)",
+    "(time limit)",
+    "crashes",
+    "runs with a thread",
+    "limit violations",
+    "estimate > limit",
+)
+"""The table's columns after the first (see :func:`format_table`)."""
+
+
+def format_table(rows: Sequence[CampaignRow], by: str = "kind") -> str:
+    """The outcome counts per fault kind (or per procedure) as a Markdown table.
+
+    Columns: runs; the issue's three outcomes (succeeded, failed after retries,
+    aborted by policy), then the aborted runs split by the policy that ended them
+    (an ``abort`` step, a ``lock`` waiting for the surgeon, the run's time limit);
+    crashes; runs whose backend has a thread (a true tension); runs whose true
+    tension went above the limit; runs whose estimated tension did.
+    """
+    first = "fault kind" if by == "kind" else "procedure"
+    head = [first, *TABLE_HEAD]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
-    for kind, t in tally(rows).items():
+    for key, t in tally(rows, by).items():
+        aborted = sum(n for o, n in t.outcomes.items() if o.startswith(ABORTED))
         cells = [
-            f"**{kind}**" if kind == "all" else kind,
+            f"**{key}**" if key == "all" else key,
             str(t.runs),
-            *(str(t.outcomes.get(o, 0)) for o in OUTCOMES),
+            str(t.outcomes.get("succeeded", 0)),
+            str(t.outcomes.get("failed after retries", 0)),
+            str(aborted),
+            *(str(t.outcomes.get(o, 0)) for o in OUTCOMES[2:]),
             str(t.crashes),
+            str(t.with_thread),
             str(t.true_violation_runs),
             str(t.estimate_runs),
         ]
