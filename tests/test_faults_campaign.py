@@ -2,20 +2,28 @@
 
 from __future__ import annotations
 
+import importlib.util
 import math
+import sys
 from pathlib import Path
+from types import ModuleType
 
 import numpy as np
 import pytest
 
 from suture_engine.faults.campaign import (
+    OUTCOME_CLASSES,
+    OUTCOMES,
     CampaignRow,
     Target,
+    baseline_job,
     classify,
     format_table,
     make_jobs,
+    outcome_class,
     random_fault,
     run_campaign,
+    run_job,
     tally,
     trace_violations,
 )
@@ -60,16 +68,59 @@ def test_random_faults_are_valid_for_every_kind(kind: str) -> None:
 
 def test_classify_reads_the_summary() -> None:
     assert classify({"outcome": "succeeded", "final_state": "finished"}) == "succeeded"
-    assert classify({"outcome": "aborted", "final_state": "ABORTED"}) == "aborted"
+    assert classify({"outcome": "aborted", "final_state": "ABORTED"}) == (
+        "aborted by policy: abort"
+    )
     locked = {"outcome": "failed", "final_state": "lock", "metrics": {"stopped": "locked, ..."}}
-    assert classify(locked) == "locked"
+    assert classify(locked) == "aborted by policy: lock"
+    notbe = {"outcome": "failed", "final_state": "autonomous/bite_notbe"}
+    assert classify(notbe) == "aborted by policy: lock"
+    assert classify({"outcome": "failed", "final_state": "failed"}) == "failed after retries"
+
+
+def test_a_time_limit_stop_is_aborted_by_policy() -> None:
+    # what the runtime writes when a run reaches --max-time (interpreter.tick / summary)
     timed = {
         "outcome": "failed",
-        "final_state": "autonomous/x",
-        "metrics": {"stopped": "time limit 5 s reached"},
+        "final_state": "autonomous/approach",
+        "metrics": {"stopped": "time limit 60 s reached"},
     }
-    assert classify(timed) == "time-limit"
-    assert classify({"outcome": "failed", "final_state": "failed"}) == "failed"
+    assert classify(timed) == "aborted by policy: time limit"
+    assert outcome_class(classify(timed)) == "aborted by policy"
+    # the time limit wins over a NOT-BE state the run was cut in
+    timed_notbe = {**timed, "final_state": "autonomous/approach~notbe"}
+    assert classify(timed_notbe) == "aborted by policy: time limit"
+    # every outcome is in one of the three classes; a crash is in none
+    assert {outcome_class(o) for o in OUTCOMES} == set(OUTCOME_CLASSES)
+    assert outcome_class("crash") not in OUTCOME_CLASSES
+
+
+def _target(name: str, kinds: tuple[str, ...]) -> Target:
+    return Target(ROOT / "procedures" / name, "ideal", kinds, ("a",), ("endobot_1",))
+
+
+def test_jobs_cycle_over_procedure_and_fault_kind(tmp_path: Path) -> None:
+    kinds = ("noise", "bias", "delay", "dropout", "joint-lock", "joint-weak", "blow-up")
+    targets = [_target(n, kinds) for n in ("stitch.yaml", "square-knot.yaml", "x.yaml")]
+    jobs = make_jobs(targets, 200, 3, tmp_path)
+    pairs = [(j.target.procedure.name, j.kind) for j in jobs]
+    block = len(targets) * len(kinds)
+    for start in range(0, 200 - block + 1, block):  # every block of T*K holds every pair once
+        assert len(set(pairs[start : start + block])) == block
+    counts = {p: pairs.count(p) for p in set(pairs)}
+    assert len(counts) == block and set(counts.values()) == {9, 10}  # 200 = 21 * 9 + 11
+    assert [j.target.procedure.name for j in jobs[:4]] == [
+        "stitch.yaml",
+        "square-knot.yaml",
+        "x.yaml",
+        "stitch.yaml",
+    ]
+    assert len({j.out_dir for j in jobs}) == 200
+
+
+def test_a_baseline_job_carries_no_fault(tmp_path: Path) -> None:
+    job = baseline_job(TARGET, 7, 1, tmp_path / "b")
+    assert (job.fault, job.kind, job.number) == ("", "none", 7)
 
 
 def test_trace_violations_count_ticks_above_the_limit(tmp_path: Path) -> None:
@@ -85,17 +136,45 @@ def test_trace_violations_count_ticks_above_the_limit(tmp_path: Path) -> None:
 
 
 def test_tally_and_table() -> None:
-    def row(i: int, kind: str, outcome: str, over: int = 0) -> CampaignRow:
-        return CampaignRow(i, "p", "ideal", kind, "f", 0, outcome, 0, true_violations=over)
+    def row(i: int, kind: str, outcome: str, over: int = 0, proc: str = "p") -> CampaignRow:
+        true = 1.0 if over else math.nan
+        return CampaignRow(
+            i,
+            proc,
+            "ideal",
+            kind,
+            "f",
+            0,
+            outcome,
+            0,
+            true_violations=over,
+            max_true_tension_N=true,
+        )
 
-    rows = [row(0, "bias", "locked"), row(1, "bias", "crash", 3), row(2, "noise", "succeeded")]
+    lock, limit = "aborted by policy: lock", "aborted by policy: time limit"
+    rows = [
+        row(0, "bias", lock),
+        row(1, "bias", "crash", 3),
+        row(2, "noise", "succeeded", proc="q"),
+        row(3, "noise", limit, proc="q"),
+        row(4, "blow-up", "failed after retries"),
+    ]
     t = tally(rows)
-    assert list(t) == ["noise", "bias", "all"]
+    assert list(t) == ["noise", "bias", "blow-up", "all"]
     assert (t["bias"].runs, t["bias"].crashes, t["bias"].true_violation_runs) == (2, 1, 1)
-    assert t["all"].outcomes["locked"] == 1 and t["all"].outcomes["succeeded"] == 1
+    assert t["all"].outcomes[lock] == 1 and t["all"].outcomes["succeeded"] == 1
     table = format_table(rows)
-    assert table.splitlines()[0].startswith("| fault kind | runs | succeeded")
-    assert "| **all** | 3 | 1 | 0 | 0 | 1 | 0 | 1 | 1 | 0 |" in table
+    assert table.splitlines()[0].startswith(
+        "| fault kind | runs | succeeded | failed after retries | aborted by policy | (abort) "
+        "| (lock) | (time limit) | crashes |"
+    )
+    # runs, succeeded, failed, aborted (abort, lock, time limit), crashes, thread, over, est.
+    assert "| **all** | 5 | 1 | 1 | 2 | 0 | 1 | 1 | 1 | 1 | 1 | 0 |" in table
+    assert "| noise | 2 | 1 | 0 | 1 | 0 | 0 | 1 | 0 | 0 | 0 | 0 |" in table
+    by_proc = format_table(rows, by="procedure")
+    assert by_proc.splitlines()[0].startswith("| procedure | runs |")
+    assert "| p | 3 | 0 | 1 | 1 | 0 | 1 | 0 | 1 | 1 | 1 | 0 |" in by_proc
+    assert "| q | 2 | 1 | 0 | 1 | 0 | 0 | 1 | 0 | 0 | 0 | 0 |" in by_proc
 
 
 def test_four_runs_end_to_end(tmp_path: Path) -> None:
@@ -104,7 +183,8 @@ def test_four_runs_end_to_end(tmp_path: Path) -> None:
     rows = run_campaign(jobs, workers=2, keep_traces=True, on_row=lambda r: seen.append(r.index))
     assert sorted(seen) == [0, 1, 2, 3] and [r.index for r in rows] == [0, 1, 2, 3]
     for job, r in zip(jobs, rows, strict=True):
-        assert r.outcome in ("succeeded", "failed", "aborted", "locked", "time-limit"), r
+        assert r.outcome in OUTCOMES, r
+        assert 0.0 < r.sim_time_s <= TARGET.max_time_s + 0.01
         assert r.error == "" and r.exit_code in (0, 1)
         assert (r.exit_code == 0) == (r.outcome == "succeeded")
         assert r.limit_N == pytest.approx(min(0.96, 17.85 / 9.80665) * 9.80665 * 0.5)
@@ -122,3 +202,52 @@ def test_a_crashing_run_is_counted_as_a_crash(tmp_path: Path) -> None:
     assert row.outcome == "crash" and row.exit_code == 2
     fault = Fault(kind="noise", sensor="ft", value=1.0)
     assert parse_fault(job.fault) == fault
+
+
+def test_a_baseline_run_is_fault_free(tmp_path: Path) -> None:
+    row = run_job(baseline_job(TARGET, 0, 1, tmp_path / "b"))
+    assert row.kind == "none" and row.fault == "" and row.error == "", row
+    assert row.outcome in OUTCOMES and row.fault_records == 0
+    assert 0.0 < row.sim_time_s <= TARGET.max_time_s + 0.01
+
+
+def test_a_short_time_limit_is_classified(tmp_path: Path) -> None:
+    # a real run cut by its time limit ends in a classified outcome, not a crash
+    short = Target(STEPS, "ideal", ("noise",), (), ("endobot_1",), 0.1, max_time_s=0.05)
+    row = run_job(baseline_job(short, 0, 1, tmp_path / "t"))
+    assert row.outcome == "aborted by policy: time limit", row
+    assert row.exit_code == 1 and row.sim_time_s == pytest.approx(0.05, abs=0.002)
+
+
+def _load_benchmark() -> ModuleType:
+    spec = importlib.util.spec_from_file_location(
+        "fault_campaign_bench", ROOT / "benchmarks" / "fault_campaign.py"
+    )
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_the_benchmark_sets_each_procedure_its_limit_from_its_baseline() -> None:
+    bench = _load_benchmark()
+    procs = [bench.procedure_path(n) for n in ("stitch", "square-knot.yaml")]
+    assert [p.name for p in procs] == ["stitch.yaml", "square-knot.yaml"]
+    assert all(p.is_file() for p in procs)
+
+    def base(proc: str, sim: float) -> CampaignRow:
+        return CampaignRow(0, proc, "pybullet", "none", "", 1, "succeeded", 0, sim_time_s=sim)
+
+    rows = {"stitch.yaml": base("stitch.yaml", 17.15), "square-knot.yaml": base("sq", 109.65)}
+    stitch, square = bench.targets(procs, "pybullet", rows, None)
+    # stitch: timeouts 15 s + 30 s; 17.15 + 45 = 62.15 -> 70 s
+    assert (stitch.max_time_s, stitch.horizon_s) == (70.0, 17.1)
+    _, square_timeouts = bench.plan_steps(procs[1])
+    assert square.max_time_s >= 109.65 + square_timeouts
+    assert square.max_time_s - (109.65 + square_timeouts) < 10.0
+    assert square.steps[0].startswith(("mirrored-knot.", "simple-knot."))
+    for t in (stitch, square):
+        assert "grasp-slip" not in t.kinds and "snag" not in t.kinds and len(t.kinds) == 7
+    fixed = bench.targets(procs, "pybullet", rows, 40.0)
+    assert [t.max_time_s for t in fixed] == [40.0, 40.0]
