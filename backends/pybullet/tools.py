@@ -549,12 +549,75 @@ class BentTipGrasper(Grasper):
     turned by ``bend_x`` [rad] about the shaft's x (the joint's outer axis), then by
     ``bend_y`` [rad] about the turned y (its inner axis), i.e. Rx(bend_x) Ry(bend_y), and
     the jaw centre sits ``tip_length`` [m] along the bent z.
+
+    Mounted on a robot and bent by more than ``collide_above`` [rad] about either axis,
+    the jaws (the bent arm) collide with the thread, so that a loop wrapped around the
+    bent arm rests on it (4.4.3: the bend keeps the loop from slipping off), except with
+    the capsule the jaws hold and ``spare`` capsules on each side of it (held by
+    constraint, inside the closed jaws), and with the needle; they then also meet the
+    other robot's instrument (the scene filters the pad and their own robot). Straight,
+    they pass through the thread and grasp it by constraint as every grasper does (the
+    solid jaw box would shove a thread it closes on).
     """
 
     bend_x: float = 0.0
     bend_y: float = 0.0
     tip_length: float = 8e-3
+    spare: int = 2
+    collide_above: float = 0.5
     _shaft: tuple[Vec3, Quat] = ((0.0, 0.0, 0.1), _IDENTITY)
+    _passed: list[int] = field(default_factory=list)
+    _filtered_for: int = -3
+    _collides: bool = False
+
+    def _update_collision(self) -> None:
+        """Jaws that collide when mounted and bent beyond ``collide_above``, else none;
+        never with the needle nor the held capsules."""
+        import pybullet as p
+
+        bent = max(abs(self.bend_x), abs(self.bend_y)) > self.collide_above
+        on = self._mounted and bent
+        if on == self._collides:
+            return
+        c = self.client
+        group, mask = (1, 0x7FFF) if on else (0, 0)
+        p.setCollisionFilterGroupMask(self.body, -1, group, mask, physicsClientId=c)
+        if on and self.suture is not None and self.suture.needle_body >= 0:
+            p.setCollisionFilterPair(
+                self.body, self.suture.needle_body, -1, -1, 0, physicsClientId=c
+            )
+        self._collides = on
+        self._filter_thread()
+
+    def _filter_thread(self) -> None:
+        """Per thread capsule, a pair filter: collide when the jaws collide, except with
+        the held capsule and its ``spare`` neighbours (a pair filter overrides the
+        group mask, so the straight jaws get every pair off)."""
+        import pybullet as p
+
+        if self.suture is None:
+            return
+        held = self.held_segment if self._collides else -2
+        if held == self._filtered_for and self._passed:
+            return
+        bodies = self.suture.bodies
+        if len(self._passed) != len(bodies):
+            self._passed = [-1] * len(bodies)
+        for i, body in enumerate(bodies):
+            near = held >= 0 and abs(i - held) <= self.spare
+            enable = int(self._collides and not near)
+            if self._passed[i] != enable:
+                p.setCollisionFilterPair(
+                    self.body, body, -1, -1, enable, physicsClientId=self.client
+                )
+                self._passed[i] = enable
+        self._filtered_for = held
+
+    def step(self) -> None:
+        """Advance the jaws (as :meth:`Grasper.step`) and keep the held capsules passable."""
+        super().step()
+        if self._collides and self.held_segment != self._filtered_for:
+            self._filter_thread()
 
     def set_bend(self, bend_x: float, bend_y: float) -> None:
         """Command the universal joint's two angles [rad].
@@ -567,6 +630,7 @@ class BentTipGrasper(Grasper):
             self._bend_mounted()
         else:
             self.set_pose(*self._shaft)
+        self._update_collision()
 
     def _bend(self) -> tuple[Vec3, Quat]:
         """The jaw frame in the universal joint's frame: Rx(bend_x) Ry(bend_y), then
