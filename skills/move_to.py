@@ -9,7 +9,7 @@ from pydantic import Field
 
 from skills.base import Skill, SkillParams
 from suture_engine.language.refs import PointRef, RoleRef
-from suture_engine.language.units import Angle, Length, Position, Speed
+from suture_engine.language.units import Angle, Force, Length, Position, Speed
 
 __all__ = ["MoveTo", "MoveToParams"]
 
@@ -45,6 +45,12 @@ class MoveToParams(SkillParams):
     """Cruise speed of the tool tip [m/s]."""
     tolerance: Length = Field(default=0.5e-3, gt=0.0)
     """Arrival tolerance of the tool-tip position [m]."""
+    until_tension: Force | None = Field(default=None, gt=0.0)
+    """A guarded move [N]: stop, done, as soon as the suture tension estimated from the
+    base force/torque sensor along the direction of motion (7.6-7.10, tared on the
+    step's first tick) reaches this value; the target is then only the furthest the tip
+    may go. Reaching the target without the tension is a failure (nothing was taken
+    up). Used to take up a slack strand before it is wrapped or pulled."""
 
 
 class MoveTo(Skill):
@@ -71,6 +77,7 @@ class MoveTo(Skill):
         self._goal: Any = None
         self._base: Any = None
         self._t0 = 0.0
+        self._est: Any = None
 
     def _target_world(self, ctx: Any) -> tuple[float, float, float]:
         from suture_engine.runtime.trajectory import tool_tip_world
@@ -125,6 +132,10 @@ class MoveTo(Skill):
         distance = float(np.linalg.norm(self._goal - tool_tip_world(q0, self._base)))
         self._traj = MinJerk(q0, q1, min_jerk_duration(distance, p.speed, minimum=0.1))
         self._t0 = ctx.t0
+        self._est = None
+        if p.until_tension is not None and distance > 0.0:
+            motion = self._goal - tool_tip_world(q0, self._base)
+            self._est = _guard_estimator(ctx, self._robot, motion)
 
     def step(self, ctx: Any, obs: Any) -> Any:
         """Track the trajectory; report success at the goal, failure if it is not reached.
@@ -143,10 +154,26 @@ class MoveTo(Skill):
         sample = self._traj(t)
         # The sample's arrays are fresh (MinJerk computes new ones per call): handed over.
         command = Command({self._robot: RobotCommand.trusted_position(sample.q, sample.qd)})
+        if self._est is not None:
+            ro = obs.robots[self._robot]
+            tension = self._est.update(ro.base_wrench, ro.q).tension
+            assert p.until_tension is not None
+            if tension >= p.until_tension:
+                # stop where the strand became taut: the trajectory's point now, at rest
+                hold = Command({self._robot: RobotCommand.trusted_position(sample.q, None)})
+                return StepResult(hold, SkillStatus.SUCCESS)
         if not sample.done:
             return StepResult(command)
         tip = tool_tip_world(obs.robots[self._robot].q, self._base)
         error = float(np.linalg.norm(tip - self._goal))
+        if self._est is not None:
+            if error <= p.tolerance or t >= self._traj.duration + self.SETTLE_S:
+                return StepResult(
+                    command,
+                    SkillStatus.FAILURE,
+                    f"tension {p.until_tension:.2f} N not reached before the end of the move",
+                )
+            return StepResult(command)
         if error <= p.tolerance:
             return StepResult(command, SkillStatus.SUCCESS)
         if t >= self._traj.duration + self.SETTLE_S:
@@ -157,3 +184,30 @@ class MoveTo(Skill):
                 f"(tolerance {p.tolerance * 1e3:.2f} mm)",
             )
         return StepResult(command)
+
+
+def _guard_estimator(ctx: Any, robot: str, motion_world: Any) -> Any:
+    """A tension estimator along the direction of motion, tared on the step's first tick.
+
+    The strand pulled by a move opposes it, so the tension acts on the tip along
+    ``-motion``; the estimator's direction is the pulling direction ``motion`` (as in
+    ``tension-regulate``), in the robot's base frame.
+    """
+    import dataclasses
+
+    import numpy as np
+
+    from suture_engine.robot.params import E1
+    from suture_engine.suture.tension import TensionEstimator
+
+    rot = np.eye(3)
+    base = ctx.base_poses.get(robot)
+    if base is not None:
+        rot = np.asarray(base[1], dtype=float).reshape(3, 3)
+    g_base = rot.T @ np.array([0.0, 0.0, -9.81])
+    prm = dataclasses.replace(E1, gravity=(float(g_base[0]), float(g_base[1]), float(g_base[2])))
+    start = ctx.start.robots[robot]
+    direction = rot.T @ np.asarray(motion_world, dtype=float)
+    est = TensionEstimator(direction, prm, dt=ctx.dt, cutoff=20.0)
+    est.tare(np.asarray(start.base_wrench, dtype=float), np.asarray(start.q, dtype=float))
+    return est

@@ -1,8 +1,13 @@
-"""move-to's per-tick commands against a hand-written quintic (no physics)."""
+"""move-to's per-tick commands against a hand-written quintic (no physics), and its guarded
+move (``until_tension``) on PyBullet with a known force at the tip."""
 
 from __future__ import annotations
 
+import math
+from typing import Any
+
 import numpy as np
+import pytest
 
 from skills.move_to import MoveTo
 from suture_engine.robot import endobot
@@ -50,3 +55,41 @@ def test_commands_follow_the_quintic_to_the_target_and_are_frozen() -> None:
             break
     assert res.status is SkillStatus.SUCCESS
     np.testing.assert_allclose(endobot.forward_kinematics(q).position, target, atol=1e-9)
+
+
+# ----------------------------------------------------------------- guarded move
+def _guarded_run(pull_N: float) -> tuple[str, float, float]:
+    """The guarded move along +x on PyBullet; from 0.8 s a force ``pull_N`` [N] pulls the tip
+    back along -x for 0.5 s (a strand pulled taut). Returns the outcome, the time the move
+    ended [s] and how far the tip went along x [m]."""
+    from test_monitor import PROCS, _pybullet_run
+
+    rise: list[float] = []
+    ended: list[float] = []
+
+    def on_tick(it: Any) -> None:
+        t = round(it._obs.t, 3)
+        if t == 0.8 and pull_N > 0.0:
+            it.backend.apply_external_force("endobot_1", (-pull_N, 0.0, 0.0), 0.5)
+        z = float(it.backend.robots["endobot_1"].true_tool_pose()[0][0])
+        rise.append(z)
+        if it.automaton.step_name != "take-up" and not ended:
+            ended.append(t)
+
+    _, summary = _pybullet_run(PROCS / "guarded.yaml", [], on_tick, 6.0)
+    return summary.outcome, (ended or [math.inf])[0], rise[-1] - rise[0]
+
+
+def test_a_guarded_move_stops_when_the_strand_pulls_back() -> None:
+    outcome, ended, rise = _guarded_run(1.0)
+    assert outcome == "succeeded"
+    # the planned 30 mm move at 10 mm/s lasts ~5.6 s; the pull from 0.8 s stops it at once
+    assert 0.8 < ended < 0.9
+    assert 0.0 < rise < 0.003  # stopped far short of the 30 mm target
+
+
+def test_a_guarded_move_that_takes_nothing_up_fails() -> None:
+    outcome, ended, rise = _guarded_run(0.0)
+    assert outcome == "aborted"  # the step's policy: then abort
+    assert rise == pytest.approx(0.03, abs=0.003)  # it went all the way: nothing pulled
+    assert ended > 4.0
