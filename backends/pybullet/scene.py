@@ -512,7 +512,7 @@ def _build_model(
     )
     params = SutureParams(
         length=float(model.suture.length),
-        n_segments=max(40, round(model.suture.length / 7.5e-3)),
+        n_segments=max(40, round(model.suture.length / (model.suture.segment or 7.5e-3))),
         diameter=float(model.suture.diameter),
         bending_stiffness=bending_stiffness,
     )

@@ -201,6 +201,11 @@ class Suture(_Model):
     needle in the stitcher's jaw; the default) or ``stitched`` (the stitch is already made:
     the thread runs through the tissue with a 30 mm tail out of the entry point, and on
     from the exit point to the needle in the stitcher's jaw)."""
+    segment: Length | None = Field(default=None, ge=1e-3, le=20e-3)
+    """Length of one simulated capsule of the thread [m] (simulators that model the thread
+    as a chain; at least 40 capsules are used). ``None``: 7.5 mm. Shorter capsules bend
+    round smaller tools (a hook, a jaw) at a cost in physics time roughly proportional to
+    their number."""
 
     @field_validator("usp", mode="before")
     @classmethod
