@@ -18,6 +18,17 @@ shaft, then along the arc: ``front-to-back`` from +e_side over e_over to
 pi (2 turns - 1) [rad]: one turn is the half loop over the hook of algorithm 2
 step 2; every further turn also passes the far side of the other shaft, where
 the tools' shafts cross.
+
+With ``around_segment: tip`` (algorithm 3, 4.4.3) the loop goes around the bent-tip
+grasper's bent arm instead: the line from its universal joint U, :data:`BENT_ARM` [m]
+behind the tool tip T' on the shaft, to the jaw centre J = U + BENT_ARM R Rx(b0)
+Ry(b1) z, with R the tool frame from the encoders and (b0, b1) the measured bend
+(``ToolState.bend``). The loop's plane is orthogonal to the arm, ``height`` from U.
+A full turn clears both of the other tool's segments (O'->U and the arm) only when
+the arm's end lies inside the cone that this tool's shaft sweeps from its RCM point O
+over the loop, i.e. when the arm points towards O: the loop plane then separates the
+arm's end (on O's side) from U and the other shaft (on the far side), and the shafts
+never cross; ``shaft_clearance`` checks it on the planned path.
 """
 
 from __future__ import annotations
@@ -31,7 +42,42 @@ from skills.base import Skill, SkillParams
 from suture_engine.language.refs import RoleRef
 from suture_engine.language.units import Angle, Length, Speed
 
-__all__ = ["Wrap", "WrapParams", "segment_gap"]
+__all__ = ["BENT_ARM", "BENT_JAW_END", "Wrap", "WrapParams", "bent_arm", "segment_gap"]
+
+BENT_ARM = 8e-3
+"""Distance from the bent-tip grasper's universal joint to its jaw centre [m]; the joint
+sits this far behind the tool tip that the robot's kinematics reports (the tool's
+declared geometry)."""
+BENT_JAW_END = 12e-3
+"""Distance from the universal joint to the end of the bent jaws [m] (jaw centre plus
+half the 8 mm jaw)."""
+
+
+def bent_arm(q: Any, base: Any, bend: Any) -> tuple[Any, Any]:
+    """The bent arm of a bent-tip grasper: universal joint U [m] and unit direction a.
+
+    Args:
+        q: the robot's encoder joints [rad, rad, rad, m].
+        base: its base pose (position [m], row-major rotation), or None for the world.
+        bend: the measured universal joint angles (about x, then the turned y) [rad].
+
+    Returns:
+        (U, a), world frame: U = T' - BENT_ARM z_tool, a = R_tool Rx(b0) Ry(b1) e_z.
+    """
+    import numpy as np
+
+    from skills.tool_path import tip_world
+    from suture_engine.robot.kinematics import rotation
+
+    rot = np.asarray(rotation(q), dtype=float)
+    if base is not None:
+        rot = np.asarray(base[1], dtype=float).reshape(3, 3) @ rot
+    b0, b1 = float(bend[0]), float(bend[1])
+    c0, s0, c1, s1 = math.cos(b0), math.sin(b0), math.cos(b1), math.sin(b1)
+    # Rx(b0) Ry(b1) e_z = Rx(b0) (sin b1, 0, cos b1)
+    local = np.array([s1, -s0 * c1, c0 * c1])
+    joint = tip_world(q, base) - BENT_ARM * rot[:, 2]
+    return joint, rot @ local
 
 
 def segment_gap(p1: Any, q1: Any, p2: Any, q2: Any) -> float:
@@ -63,6 +109,14 @@ class WrapParams(SkillParams):
     """The role of the robot that carries the suture around."""
     around: RoleRef
     """The role of the robot whose tool the loop goes around."""
+    around_segment: Literal["shaft", "tip"] = "shaft"
+    """What the loop goes around: ``shaft``, the other tool's shaft O'->T';
+    ``tip``, a bent-tip grasper's bent arm from its universal joint to its jaws
+    (algorithm 3), from its encoders and measured bend."""
+    height: Length | None = Field(default=None, gt=0.0, le=0.05)
+    """Distance of the loop's plane along the segment [m]: up the shaft from T'
+    (``shaft``, default :attr:`Wrap.HEIGHT`) or along the arm from the universal
+    joint (``tip``, default :attr:`Wrap.ARM_HEIGHT`)."""
     direction: Literal["front-to-back", "back-to-front"] = "front-to-back"
     """Direction of the loop; a mirrored knot uses ``back-to-front``."""
     turns: int = Field(default=1, ge=1, le=3)
@@ -113,6 +167,8 @@ class Wrap(Skill):
 
     HEIGHT: ClassVar[float] = 0.01
     """Height of the loop's plane up the other tool's shaft from its tip [m]."""
+    ARM_HEIGHT: ClassVar[float] = 6e-3
+    """Distance of the loop's plane along the bent arm from the universal joint [m]."""
     APPROACH_SPEED: ClassVar[float] = 0.02
     """Smallest peak tip speed of the free-space approach to the arc [m/s]."""
     TOLERANCE: ClassVar[float] = 1e-3
@@ -133,6 +189,8 @@ class Wrap(Skill):
         self.sign = 1.0
         self._e1: Any = None
         self._e2: Any = None
+        self.segments: list[tuple[Any, Any]] = []
+        """The other tool's segments the clearance is checked against [m]."""
         self.shaft_gap = float("inf")
         """Smallest distance between the two shaft axes on the planned paths [m]
         (computed when ``shaft_clearance`` is set)."""
@@ -186,21 +244,39 @@ class Wrap(Skill):
         self._base = ctx.base_poses.get(self._robot)
         self._t0 = ctx.t0
         self._failure = ""
+        failure = ""
         self.sign = 1.0 if p.direction == "front-to-back" else -1.0
         q0 = np.array(ctx.start.robots[self._robot].q)
         roll = float(q0[2])
         other_base = ctx.base_poses.get(other)
         o2 = np.zeros(3) if other_base is None else np.asarray(other_base[0], dtype=float)
-        t2 = tip_world(ctx.start.robots[other].q, other_base)
-        axis = o2 - t2
-        self.axis = axis / np.linalg.norm(axis)
-        self.centre = t2 + self.HEIGHT * self.axis
+        other_obs = ctx.start.robots[other]
+        t2 = tip_world(other_obs.q, other_base)
+        # the other tool as segments (for the clearance) and the loop's axis and centre
+        if p.around_segment == "tip":
+            if other_obs.tool.kind != "bent-tip-grasper":
+                failure = f"tool {other_obs.tool.kind!r} has no bent arm to wrap around"
+            joint, arm = bent_arm(other_obs.q, other_base, other_obs.tool.bend)
+            self.segments = [(o2, joint), (joint, joint + BENT_JAW_END * arm)]
+            self.axis = arm
+            height = self.ARM_HEIGHT if p.height is None else p.height
+            self.centre = joint + height * self.axis
+        else:
+            self.segments = [(o2, t2)]
+            axis = o2 - t2
+            self.axis = axis / np.linalg.norm(axis)
+            height = self.HEIGHT if p.height is None else p.height
+            self.centre = t2 + height * self.axis
         tip = tip_world(q0, self._base)
         own = np.zeros(3) if self._base is None else np.asarray(self._base[0], dtype=float)
         over = own - self.centre
         over = over - (over @ self.axis) * self.axis
         if float(np.linalg.norm(over)) < 1e-9:
-            self._failure = "the two shafts are aligned: no side is over the other tool"
+            failure = failure or (
+                "the two shafts are aligned: no side is over the other tool"
+                if p.around_segment == "shaft"
+                else "the bent arm points at this robot's RCM point: no side is over it"
+            )
             over = np.cross(self.axis, (1.0, 0.0, 0.0))
         self._e1 = over / np.linalg.norm(over)
         self._e2 = np.cross(self.axis, self._e1)
@@ -226,25 +302,30 @@ class Wrap(Skill):
         self._goal = self.loop_point(1.0)
         if self._robot == other:
             self._failure = "a tool cannot wrap around itself"
+        self._failure = self._failure or failure
         box = joint_box(ctx, self._robot)
         for path in self._paths:
             self._failure = self._failure or path.first_violation(box)
         if p.shaft_clearance is not None:
-            self.shaft_gap = self._shaft_gap(own, o2, t2)
+            self.shaft_gap = self._shaft_gap(own)
         if p.shaft_clearance is not None and self.shaft_gap < p.shaft_clearance:
             self._failure = self._failure or (
                 f"the shafts come {self.shaft_gap * 1e3:.2f} mm apart on the loop (needs "
-                f"{p.shaft_clearance * 1e3:.2f} mm): the tool would cross the other shaft"
+                f"{p.shaft_clearance * 1e3:.2f} mm): the tool would cross the other "
+                + ("shaft" if p.around_segment == "shaft" else "tool's shaft or bent arm")
             )
 
-    def _shaft_gap(self, own: Any, o2: Any, t2: Any) -> float:
-        """Smallest distance [m] between the two shaft axes along the planned paths."""
+    def _shaft_gap(self, own: Any) -> float:
+        """Smallest distance [m] between this tool's shaft axis and the other tool's
+        segments (its shaft, and with ``tip`` its bent arm) along the planned paths."""
         from skills.tool_path import tip_world
 
         gap = float("inf")
         for path in self._paths:
             for q in path.table:
-                gap = min(gap, segment_gap(own, tip_world(q, self._base), o2, t2))
+                tip = tip_world(q, self._base)
+                for a, b in self.segments:
+                    gap = min(gap, segment_gap(own, tip, a, b))
         return gap
 
     def step(self, ctx: Any, obs: Any) -> Any:

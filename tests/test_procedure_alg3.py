@@ -2,9 +2,10 @@
 
 The loop is a full turn of the needle holder about the grasper. About a straight
 stem the holder's shaft must cross the grasper's; ``wrap`` with
-``shaft_clearance`` refuses that before moving. The shaft distances are checked
-against dense sampling and scipy's bounded minimisation, not the skill's own
-closed form.
+``shaft_clearance`` refuses that before moving. The procedure therefore bends the
+grasper's universal joint and loops around the bent arm (``around_segment: tip``).
+The shaft distances are checked against dense sampling and scipy's bounded
+minimisation, not the skill's own closed form.
 """
 
 from __future__ import annotations
@@ -79,12 +80,22 @@ def test_states_follow_the_thesis_steps() -> None:
     while proc.states[state].on:
         order.append(state)
         state = proc.states[state].on["done"]
-    assert order == ["stitch", "pick-strand", "present", "loop", "grab-tail", "tighten"]
+    assert order == [
+        "stitch",
+        "pick-strand",
+        "present",
+        "bend",
+        "loop",
+        "straighten",
+        "grab-tail",
+        "tighten",
+    ]
     assert proc.states["tied"].outcome == "succeeded"
 
 
-def plan_loop(sweep: float | None = None, mirror: bool = False) -> Wrap:
-    """The ``loop`` state's wrap, planned with both tools where the earlier states leave them."""
+def plan_loop(sweep: float | None = None, mirror: bool = False, segment: str = "shaft") -> Wrap:
+    """The ``loop`` state's wrap, planned with both tools where the earlier states leave
+    them; ``segment="shaft"`` plans it about the straight stem instead of the bent arm."""
     proc: Any = load_procedure(PROC, params={"mirror": mirror, "pick_strand": True})
     scene = proc.scene
     points = scene.tissue.points
@@ -100,7 +111,11 @@ def plan_loop(sweep: float | None = None, mirror: bool = False) -> Wrap:
         "endobot_1": ik_world(holder_tip, 0.0, bases["endobot_1"]),
         "endobot_2": ik_world(grasper_tip, 0.0, bases["endobot_2"]),
     }
-    tools = {"endobot_1": ToolState("grasper", True), "endobot_2": ToolState("bent-tip-grasper")}
+    bend = tuple(proc.states["bend"].params.angles) if segment == "tip" else (0.0, 0.0)
+    tools = {
+        "endobot_1": ToolState("grasper", True),
+        "endobot_2": ToolState("bent-tip-grasper", bend=bend),  # type: ignore[arg-type]
+    }
     obs = Observation(
         0,
         0.0,
@@ -109,6 +124,8 @@ def plan_loop(sweep: float | None = None, mirror: bool = False) -> Wrap:
     )
     ctx = SkillContext("loop", dict(proc.roles), 1e-3, obs, scene, {}, bases)
     params = proc.states["loop"].params.model_dump()
+    if segment == "shaft":
+        params.update(around_segment="shaft", height=None, radius=8e-3)
     if sweep is not None:
         params["sweep"] = sweep
     skill = Wrap(WrapParams.model_validate(params))
