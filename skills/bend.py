@@ -128,7 +128,9 @@ class Bend(Skill):
         measured = obs.robots[self._robot].tool.bend
         err = max(abs(float(m) - g) for m, g in zip(measured, self._goal, strict=True))
         if err <= p.tolerance:
-            return StepResult(cmd, SkillStatus.SUCCESS)
+            # the last setpoint is the goal itself: the joint settles there afterwards
+            done = hold_command(self._robot, self._q, ToolCommand(bend=self._goal))
+            return StepResult(done, SkillStatus.SUCCESS)
         if t >= self.ramp + self.SETTLE_S:
             return StepResult(
                 cmd,

@@ -570,6 +570,37 @@ class BentTipGrasper(Grasper):
     _filtered_for: int = -3
     _collides: bool = False
 
+    def _make_body(self, half_extents: Vec3, mass: float, rgba: list[float]) -> None:
+        """The jaws (a box about the jaw centre) and the bent link behind them: a capsule
+        of the jaws' half width from the universal joint (``tip_length`` behind the jaw
+        centre) to the jaws, so a loop cannot slip between the shaft and the jaws."""
+        import pybullet as p
+
+        c = self.client
+        link = self.tip_length - half_extents[2]
+        radius = min(half_extents[0], half_extents[1])
+        shapes = [p.GEOM_BOX, p.GEOM_CAPSULE]
+        frames = [[0.0, 0.0, 0.0], [0.0, 0.0, -(half_extents[2] + link / 2)]]
+        col = p.createCollisionShapeArray(
+            shapeTypes=shapes,
+            halfExtents=[list(half_extents), [0.0, 0.0, 0.0]],
+            radii=[0.0, radius],
+            lengths=[0.0, link],
+            collisionFramePositions=frames,
+            physicsClientId=c,
+        )
+        vis = p.createVisualShapeArray(
+            shapeTypes=shapes,
+            halfExtents=[list(half_extents), [0.0, 0.0, 0.0]],
+            radii=[0.0, radius],
+            lengths=[0.0, link],
+            visualFramePositions=frames,
+            rgbaColors=[rgba, rgba],
+            physicsClientId=c,
+        )
+        self.body = p.createMultiBody(mass, col, vis, [0, 0, 0], physicsClientId=c)
+        p.setCollisionFilterGroupMask(self.body, -1, 0, 0, physicsClientId=c)
+
     def _update_collision(self) -> None:
         """Jaws that collide when mounted and bent beyond ``collide_above``, else none;
         never with the needle nor the held capsules."""
