@@ -193,7 +193,18 @@ def main() -> None:
         help="one row per run, appended as runs end; the runs already there are not run "
         "again (default: OUT/campaign.csv)",
     )
+    ap.add_argument(
+        "--report",
+        action="store_true",
+        help="run nothing: print the tables of the rows already in the CSV (an interrupted "
+        "campaign's first N runs)",
+    )
     args = ap.parse_args()
+    if args.report:
+        if args.out is None and args.csv is None:
+            raise SystemExit("--report needs --out or --csv")
+        report(args.csv or args.out / "campaign.csv", args.out)
+        return
 
     out = args.out or Path(tempfile.mkdtemp(prefix="fault-campaign-"))
     out.mkdir(parents=True, exist_ok=True)
@@ -281,6 +292,30 @@ def main() -> None:
         f"{sum(r.estimate_over_limit > 0 for r in rows)}"
     )
     print(f"runs whose trace records no fault onset: {sum(r.fault_records == 0 for r in rows)}")
+    for r in crashes:
+        print(f"  crash: run {r.index} --fault {r.fault!r} exit {r.exit_code}: {r.error}")
+
+
+def report(csv_path: Path, out: Path | None) -> None:
+    """Print the tables of a campaign CSV (and its baselines, if ``out`` has them)."""
+    if out is not None and (out / "baseline.csv").is_file():
+        print(format_table(list(read_rows(out / "baseline.csv").values()), by="procedure"))
+        print()
+    rows = sorted(read_rows(csv_path).values(), key=lambda r: r.index)
+    print(format_table(rows))
+    print()
+    print(format_table(rows, by="procedure"))
+    print()
+    crashes = [r for r in rows if r.outcome == "crash"]
+    with_truth = sum(math.isfinite(r.max_true_tension_N) for r in rows)
+    print(
+        f"runs: {len(rows)} (indices {rows[0].index if rows else '-'}-"
+        f"{rows[-1].index if rows else '-'})  crashes: {len(crashes)}  "
+        f"tension-limit violations (true tension, {with_truth} runs with a thread): "
+        f"{sum(r.true_violations > 0 for r in rows)}  "
+        f"estimate > limit: {sum(r.estimate_over_limit > 0 for r in rows)}  "
+        f"no fault onset: {sum(r.fault_records == 0 for r in rows)}"
+    )
     for r in crashes:
         print(f"  crash: run {r.index} --fault {r.fault!r} exit {r.exit_code}: {r.error}")
 
