@@ -69,6 +69,8 @@ class MoveTo(Skill):
 
     SETTLE_S: ClassVar[float] = 1.0
     """Time allowed after the trajectory's end to reach the tolerance [s]."""
+    ROLL_SPEED: ClassVar[float] = 1.0
+    """Peak roll rate of the tool [rad/s]: a 180 deg roll takes 5.9 s."""
 
     def __init__(self, params: SkillParams) -> None:
         super().__init__(params)
@@ -130,7 +132,12 @@ class MoveTo(Skill):
         roll = float(q0[2]) if p.roll is None else float(p.roll)
         q1 = inverse_kinematics(world_to_base(self._goal, self._base), roll)
         distance = float(np.linalg.norm(self._goal - tool_tip_world(q0, self._base)))
-        self._traj = MinJerk(q0, q1, min_jerk_duration(distance, p.speed, minimum=0.1))
+        # the roll turns at most ROLL_SPEED at the quintic's peak (a roll-only move too)
+        duration = max(
+            min_jerk_duration(distance, p.speed, minimum=0.1),
+            min_jerk_duration(abs(float(q1[2]) - float(q0[2])), self.ROLL_SPEED, minimum=0.1),
+        )
+        self._traj = MinJerk(q0, q1, duration)
         self._t0 = ctx.t0
         self._est = None
         if p.until_tension is not None and distance > 0.0:

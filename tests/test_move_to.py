@@ -93,3 +93,18 @@ def test_a_guarded_move_that_takes_nothing_up_fails() -> None:
     assert outcome == "aborted"  # the step's policy: then abort
     assert rise == pytest.approx(0.03, abs=0.003)  # it went all the way: nothing pulled
     assert ended > 4.0
+
+
+def test_a_roll_only_move_turns_at_the_peak_roll_rate() -> None:
+    q0 = np.array([0.1, -0.1, 0.0, 0.1])
+    tip = endobot.forward_kinematics(q0).position
+    skill = MoveTo({"robot": "arm", "target": tuple(tip), "roll": math.pi, "speed": 0.05})
+    ctx = SkillContext(step="s", roles={"arm": ROBOT}, dt=1e-3, start=_obs(0.0, q0), params={})
+    skill.start(ctx)
+    # a quintic's peak rate is 15/8 of its mean: 180 deg at 1 rad/s peak takes 15 pi / 8 s
+    assert skill._traj.duration == pytest.approx(15 * math.pi / 8)
+    rates = [
+        abs(skill.step(ctx, _obs(t, q0)).command.robots[ROBOT].qd[2])
+        for t in np.linspace(0.0, skill._traj.duration, 201)
+    ]
+    assert max(rates) == pytest.approx(MoveTo.ROLL_SPEED, rel=1e-3)
