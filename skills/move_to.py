@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import math
 from typing import Any, ClassVar
 
 from pydantic import Field
@@ -71,6 +72,8 @@ class MoveTo(Skill):
     """Time allowed after the trajectory's end to reach the tolerance [s]."""
     ROLL_SPEED: ClassVar[float] = 1.0
     """Peak roll rate of the tool [rad/s]: a 180 deg roll takes 5.9 s."""
+    ROLL_TOLERANCE: ClassVar[float] = math.radians(3.0)
+    """Arrival tolerance of the roll when the move sets one [rad]."""
 
     def __init__(self, params: SkillParams) -> None:
         super().__init__(params)
@@ -181,14 +184,16 @@ class MoveTo(Skill):
                     f"tension {p.until_tension:.2f} N not reached before the end of the move",
                 )
             return StepResult(command)
-        if error <= p.tolerance:
+        roll_error = 0.0 if p.roll is None else abs(float(obs.robots[self._robot].q[2]) - p.roll)
+        if error <= p.tolerance and roll_error <= self.ROLL_TOLERANCE:
             return StepResult(command, SkillStatus.SUCCESS)
         if t >= self._traj.duration + self.SETTLE_S:
             return StepResult(
                 command,
                 SkillStatus.FAILURE,
                 f"tool tip {error * 1e3:.2f} mm from the goal "
-                f"(tolerance {p.tolerance * 1e3:.2f} mm)",
+                f"(tolerance {p.tolerance * 1e3:.2f} mm), roll "
+                f"{math.degrees(roll_error):.1f} deg off",
             )
         return StepResult(command)
 
