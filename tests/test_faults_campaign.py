@@ -251,3 +251,19 @@ def test_the_benchmark_sets_each_procedure_its_limit_from_its_baseline() -> None
         assert "grasp-slip" not in t.kinds and "snag" not in t.kinds and len(t.kinds) == 7
     fixed = bench.targets(procs, "pybullet", rows, 40.0)
     assert [t.max_time_s for t in fixed] == [40.0, 40.0]
+
+
+def test_state_triggers_of_sub_procedure_steps_parse_and_match(tmp_path: Path) -> None:
+    # the square knot's steps are qualified ("mirrored-knot.tighten"); the --fault syntax
+    # takes no dotted name, so the campaign names the step by its own name, which the
+    # schedule matches as a step of a sub-procedure
+    from suture_engine.faults.schedule import state_matches
+
+    steps = ("simple-knot.stitch.approach", "simple-knot.tighten", "mirrored-knot.tighten")
+    target = Target(STEPS, "pybullet", FAULT_KINDS, steps, ("endobot_1", "endobot_2"))
+    jobs = make_jobs([target], 120, 0, tmp_path)
+    whens = [parse_fault(j.fault).when for j in jobs]  # every spec parses
+    drawn = {w for w in whens if w is not None}
+    assert drawn == {"approach", "tighten"}
+    for name in drawn:
+        assert any(state_matches(step, name) for step in steps)

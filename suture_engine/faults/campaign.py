@@ -181,7 +181,10 @@ def _when_or_at(rng: np.random.Generator, target: Target, data: dict[str, Any]) 
     if r < 0.5 or not target.steps:
         data["at"] = round(float(rng.uniform(0.0, target.horizon_s)), 3)
     elif r < 0.75:
-        data["when"] = str(rng.choice(list(target.steps)))
+        # a sub-procedure's step by its own name ("tighten" for "mirrored-knot.tighten"):
+        # the trigger matches the first step of that name entered, and the --fault syntax
+        # takes no dotted name
+        data["when"] = str(rng.choice(list(target.steps))).rsplit(".", 1)[-1]
         data["at"] = round(float(rng.uniform(0.0, 2.0)), 3)
     elif r < 0.875:
         data["rate"] = round(float(rng.uniform(0.1, 1.0)), 3)
