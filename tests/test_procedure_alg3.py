@@ -86,10 +86,32 @@ def test_states_follow_the_thesis_steps() -> None:
         "present",
         "bend",
         "loop",
-        "straighten",
         "grab-tail",
         "tighten",
     ]
+
+
+def test_the_bent_jaws_close_on_the_tail() -> None:
+    """grab-tail places the tool tip so that the bent jaws' centre (not the tool tip) is
+    at entry + (0, -8, 2) mm: re-derived from the scipy construction of the bent arm."""
+    from skills.wrap import BENT_ARM
+
+    proc: Any = load_procedure(PROC)
+    spec = proc.scene.robots["endobot_2"]
+    rot = Rotation.from_euler("xyz", spec.base.rpy)
+    base = (tuple(spec.base.position), tuple(rot.as_matrix().reshape(-1)))
+    grab = proc.states["grab-tail"].params
+    entry = np.asarray(proc.scene.tissue.points[grab.target])
+    tip = entry + np.asarray(grab.offset)
+    q = ik_world(tip, 0.0, base)
+    # the tool frame from positions: z from the RCM point through the tip, the roll's x
+    # from scipy (yaw about x, pitch about y, roll about z, in the rotated base frame)
+    frame = rot * Rotation.from_euler("XYZ", q[:3])
+    z = frame.as_matrix()[:, 2]
+    assert z == pytest.approx((tip - base[0]) / np.linalg.norm(tip - base[0]), abs=1e-9)
+    arm = (frame * Rotation.from_euler("XY", proc.states["bend"].params.angles)).apply([0, 0, 1])
+    jaws = tip - BENT_ARM * z + BENT_ARM * arm
+    assert np.linalg.norm(jaws - (entry + np.array([0.0, -8e-3, 2e-3]))) < 0.1e-3
     assert proc.states["tied"].outcome == "succeeded"
 
 
