@@ -96,7 +96,9 @@ def run(folder: Path, backend: str, **options: Any) -> tuple[dict[str, Any], Any
 
 
 def bends(trace: Any, robot: str = "endobot_2") -> list[tuple[float, list[float]]]:
-    return [(m.log_time_ns * 1e-9, m.data["bend"]) for m in trace.messages([f"/tool_state/{robot}"])]
+    return [
+        (m.log_time_ns * 1e-9, m.data["bend"]) for m in trace.messages([f"/tool_state/{robot}"])
+    ]
 
 
 def test_ideal_backend_bends_and_straightens_and_the_trace_records_it(tmp_path: Path) -> None:
@@ -192,6 +194,7 @@ def test_surgical_jaws_turn_with_the_measured_bend() -> None:
     from suture_engine.language.loader import load_procedure
 
     scene = load_procedure(ROOT / "procedures" / "knot-algorithm-3.yaml").scene
+    assert scene is not None
     be = StitchedSurgicalPyBulletBackend()
     try:
         be.reset(scene, 1)

@@ -124,6 +124,7 @@ def test_the_loop_circles_the_bent_arm(proc: Any) -> None:
     skill, qs, bases = plan(proc, bend)
     assert skill._failure == ""
     p = skill.params
+    assert isinstance(p, WrapParams) and p.height is not None
     joint, arm = bent_arm(qs["endobot_2"], bases["endobot_2"], bend)
     pts = np.array([skill.loop_point(s) for s in np.linspace(0.0, 1.0, 73)])
     rel = pts - joint

@@ -178,6 +178,7 @@ class PyBulletBackend:
         self.dt = dt
         self.friction = friction
         self._q0 = dict(q0 or {})
+        self._start_q: dict[str, tuple[float, ...]] = dict(self._q0)
         self.client: int | None = None
         self.robots: dict[str, Any] = {}
         self.tick = 0
@@ -227,6 +228,7 @@ class PyBulletBackend:
         self._forces = []
         self._hands = []
         self.tick = 0
+        self._start_q = dict(self._q0)
         base_positions = {}
         unknown = sorted(set(self.base_error) - set(self._bases(scene)))
         if unknown:
@@ -252,7 +254,7 @@ class PyBulletBackend:
                     client,
                     base_position=tuple(np.asarray(pos, dtype=float) + offset),
                     base_orientation=_quaternion(rpy),
-                    q0=self._q0.get(name, DEFAULT_Q0),
+                    q0=self._start_q.get(name, DEFAULT_Q0),
                     friction=self.friction,
                     ft_sensor=ft_model,
                     seed=seed * 1000 + i,
@@ -272,10 +274,10 @@ class PyBulletBackend:
         steps = 1 if self.scene is None else max(1, round(self.SETTLE_S / self.dt))
         for _ in range(steps):
             for name, sim in self.robots.items():
-                sim.apply(gravity_vector(self._q0.get(name, DEFAULT_Q0), sim.model_params))
+                sim.apply(gravity_vector(self._start_q.get(name, DEFAULT_Q0), sim.model_params))
             self._physics_step()
             for name, sim in self.robots.items():
-                sim.reset(self._q0.get(name, DEFAULT_Q0))
+                sim.reset(self._start_q.get(name, DEFAULT_Q0))
         self._geometry = scene_geometry(scene, base_positions)
         return self.observe()
 
@@ -321,7 +323,9 @@ class PyBulletBackend:
         self.scene = built
         self.client = built.client
         for i, (name, sim) in enumerate(sorted(built.robots.items())):
-            q0 = self._q0.get(name, DEFAULT_Q0)
+            # the scene's start joints (the stitched start's pulled-out stitcher) unless
+            # the caller gave its own
+            q0 = self._start_q.setdefault(name, tuple(built.hold.get(name, DEFAULT_Q0)))
             sim.reset(q0)
             sim.friction_enabled = self.friction
             if self.friction_scale != 1.0:

@@ -70,9 +70,9 @@ __all__ = [
     "command_topic",
     "joint_state_topic",
     "qp_topic",
-    "tool_state_topic",
     "schema_bytes",
     "spec_for",
+    "tool_state_topic",
     "validation_schema",
 ]
 
