@@ -143,6 +143,16 @@ def test_stitched_backend_starts_with_the_stitch_made_and_the_needle_held() -> N
         assert (tool.kind, tool.jaw_closed, tool.jaw2_closed) == ("stitcher", True, False)
         hook = first.robots["endobot_2"].tool
         assert grasper.state is JawState.OPEN and grasper.hook_extension == 0.0
+        # The stitcher starts where the stitch's pull (4.3) ends: its tip l_d = 40 mm along
+        # the normal from the exit point (the simulator's tool frame), and the thread runs
+        # from the exit to the needle in its jaw.
+        from backends.pybullet.scene import STITCHED_PULL
+
+        pulled = np.array([0.0, 4e-3, STITCHED_PULL])  # above the bench's exit_2
+        tip = np.asarray(be.robots["endobot_1"].true_tool_pose()[0])
+        assert np.linalg.norm(tip - pulled) < 1e-3
+        line = be.scene.suture.centerline()
+        assert np.linalg.norm(line[-1] - tip) < 8e-3  # the needle's end, in jaw 0
         assert (hook.jaw_closed, hook.hook_extension) == (False, 0.0)
         # Commanding the state it reports changes nothing; closing jaw 2 as well passes
         # the needle (Fig. 4.3), and the report follows the physics.

@@ -97,6 +97,11 @@ _KP = np.array([40.0, 40.0, 2.0, 400.0])
 _KD = np.array([2.0, 2.0, 0.05, 20.0])
 """Holding damping per joint [N*m*s/rad, N*m*s/rad, N*m*s/rad, N*s/m]."""
 _Q0 = (0.0, 0.0, 0.0, 0.08)
+
+STITCHED_PULL = 0.04
+"""In the stitched start, how far the stitch's pull (4.3) left the stitcher's tip from the
+exit point along the tissue normal, l_d [m]: the stitcher starts there, holding the needle,
+with the thread running from the exit to its jaw."""
 """Start joints of the robots [rad, rad, rad, m]."""
 
 START_STATES = ("needle", "stitched")
@@ -469,6 +474,25 @@ def _from_model(
         raise
 
 
+def _pulled_out_joints(spec: Any, point: Any) -> tuple[float, float, float, float] | None:
+    """The joints that put a robot's tool tip at ``point`` [m] (roll 0), or None when the
+    point is outside its joint limits (the robot then starts at :data:`_Q0`)."""
+    import pybullet as p
+
+    from suture_engine.robot.kinematics import inverse_kinematics
+
+    rot = np.array(p.getMatrixFromQuaternion(_quaternion(spec.base.rpy))).reshape(3, 3)
+    local = rot.T @ (np.asarray(point, float) - np.asarray(spec.base.position, float))
+    q = inverse_kinematics(local, 0.0)
+    limits = getattr(spec, "joint_limits", None)
+    if limits is not None:
+        for value, name in zip(q, ("yaw", "pitch", "roll", "insertion"), strict=True):
+            bound = getattr(limits, name, None)
+            if bound is not None and not bound[0] <= float(value) <= bound[1]:
+                return None
+    return (float(q[0]), float(q[1]), float(q[2]), float(q[3]))
+
+
 def _build_model(
     client: int,
     model: Any,
@@ -525,6 +549,11 @@ def _build_model(
     threaded = not stitchers or start == "stitched"
     carrier = stitchers[0] if stitchers else holder
     if carrier is not None and start == "stitched":
+        # where the stitch's pull (4.3) ends: the tip l_d along the normal from the exit
+        q_pulled = _pulled_out_joints(model.robots[carrier], exit_ + normal * STITCHED_PULL)
+        if q_pulled is not None:
+            robots[carrier].reset(q_pulled)
+            hold[carrier] = q_pulled
         tip, orn = robots[carrier].true_tool_pose()
         jaw, _ = p.multiplyTransforms(
             [float(v) for v in tip],
