@@ -56,6 +56,12 @@ def test_tool_commands_drive_the_simulated_tools() -> None:
         assert stitcher.needle_holder == 1
         _hold(be, {"endobot_2": ToolCommand(jaw_closed=False, hook_extension=0.0)}, 400)
         assert grasper.state is JawState.OPEN and grasper.hook_extension == pytest.approx(0.0)
+        # The hook skill ramps its setpoint and ends within its tolerance: a command that
+        # moves in retracts the hook fully even if it never reaches 0.
+        _hold(be, {"endobot_2": ToolCommand(hook_extension=0.005)}, 400)
+        assert grasper.hook_extension == pytest.approx(1.0)
+        _hold(be, {"endobot_2": ToolCommand(hook_extension=0.0049)}, 400)
+        assert grasper.hook_extension == pytest.approx(0.0)
     finally:
         be.close()
 

@@ -419,8 +419,12 @@ class PyBulletBackend:
             elif isinstance(tool, Grasper):
                 if new.jaw_closed != old.jaw_closed:
                     (tool.close if new.jaw_closed else tool.open)()
+                # The hook's actuator is a reciprocating one (4.4.2): a command that moves
+                # out extends it fully, one that moves in retracts it (a skill ramps the
+                # setpoint and may end within its tolerance short of 0).
                 if new.hook_extension != old.hook_extension:
-                    (tool.extend_hook if new.hook_extension > 0.0 else tool.retract_hook)()
+                    out = new.hook_extension > old.hook_extension
+                    (tool.extend_hook if out else tool.retract_hook)()
         except ToolError as exc:
             raise BackendError(self.name, f"tool of {name}: {exc}") from None
 
