@@ -72,14 +72,19 @@ def _tool_rotation(q: Any) -> np.ndarray:
 
 
 def plan(proc: Any, bend: tuple[float, float], **overrides: Any) -> tuple[Wrap, Any, Any]:
-    """The ``loop`` wrap with the holder at its start pose (the stitched start: 80 mm in)
-    and the grasper at ``present``'s goal, bent by ``bend``."""
+    """The ``loop`` wrap with the holder where the stitch's pull leaves it (the stitched
+    start: its tip 40 mm along the normal from the exit) and the grasper at ``present``'s
+    goal, bent by ``bend``."""
+    from backends.pybullet.scene import STITCHED_PULL
+
     scene = proc.scene
     bases = bases_of(scene)
     present = proc.states["present"].params
-    grasper_tip = np.asarray(scene.tissue.points[present.target]) + np.asarray(present.offset)
+    points = scene.tissue.points
+    grasper_tip = np.asarray(points[present.target]) + np.asarray(present.offset)
+    holder_tip = np.asarray(points["exit_2"]) + STITCHED_PULL * np.asarray(scene.tissue.normal)
     qs = {
-        "endobot_1": np.array([0.0, 0.0, 0.0, 0.08]),
+        "endobot_1": ik_world(holder_tip, 0.0, bases["endobot_1"]),
         "endobot_2": ik_world(grasper_tip, 0.0, bases["endobot_2"]),
     }
     kind = overrides.pop("kind", "bent-tip-grasper")
