@@ -37,6 +37,7 @@ STEPS = (ROOT / "tests" / "procedures" / "steps.yaml").read_text(encoding="utf-8
         ),
         ("ft.dropout@rate 2/s for 10 ms", {"rate": 2.0, "duration": 0.01}),
         ("endobot_2:grasp-slip@state tighten", {"kind": "grasp-slip", "when": "tighten"}),
+        ("grasp-slip@state mirrored-knot.tighten", {"when": "mirrored-knot.tighten"}),
         ("snag=2 N@state bite+1 s for 300 ms", {"value": 2.0, "when": "bite", "at": 1.0}),
         ("endobot_1:pitch.joint-lock@1 s", {"kind": "joint-lock", "joint": "pitch", "at": 1.0}),
         ("q4.joint-weak=0.3", {"joint": "insertion", "value": 0.3}),

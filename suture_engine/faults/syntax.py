@@ -58,6 +58,8 @@ _TARGETS = {
 }
 _OPTION_KEYS = ("axis", "mode", "seed", "joint", "within", "at", "when")
 _NAME = re.compile(r"[A-Za-z0-9_\-]+$")
+_STATE = re.compile(r"[A-Za-z0-9_\-]+(\.[A-Za-z0-9_\-]+)*$")
+"""A state name, dotted for a sub-procedure's step (``mirrored-knot.tighten``)."""
 
 
 class FaultSpecError(SutureError):
@@ -131,7 +133,7 @@ def _trigger(spec: str, text: str, pos: int, out: dict[str, Any], where: dict[st
     if head == "state":
         name, _, delay = rest.partition("+")
         name = name.strip()
-        if not name or not _NAME.match(name):
+        if not name or not _STATE.match(name):
             raise FaultSyntaxError(spec, rest_pos, "a state name after 'state'")
         out["when"], where["when"] = name, rest_pos
         if delay.strip():
