@@ -203,23 +203,13 @@ def _guard_estimator(ctx: Any, robot: str, motion_world: Any) -> Any:
 
     The strand pulled by a move opposes it, so the tension acts on the tip along
     ``-motion``; the estimator's direction is the pulling direction ``motion`` (as in
-    ``tension-regulate``), in the robot's base frame.
+    ``tension-regulate``).
     """
-    import dataclasses
+    from suture_engine.suture.tension import mounted_estimator
 
-    import numpy as np
-
-    from suture_engine.robot.params import E1
-    from suture_engine.suture.tension import TensionEstimator
-
-    rot = np.eye(3)
     base = ctx.base_poses.get(robot)
-    if base is not None:
-        rot = np.asarray(base[1], dtype=float).reshape(3, 3)
-    g_base = rot.T @ np.array([0.0, 0.0, -9.81])
-    prm = dataclasses.replace(E1, gravity=(float(g_base[0]), float(g_base[1]), float(g_base[2])))
     start = ctx.start.robots[robot]
-    direction = rot.T @ np.asarray(motion_world, dtype=float)
-    est = TensionEstimator(direction, prm, dt=ctx.dt, cutoff=20.0)
-    est.tare(np.asarray(start.base_wrench, dtype=float), np.asarray(start.q, dtype=float))
+    est, _ = mounted_estimator(
+        None if base is None else base[1], motion_world, start.base_wrench, start.q, ctx.dt, 20.0
+    )
     return est

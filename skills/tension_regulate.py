@@ -23,7 +23,6 @@ tension limit or the tension is not reached within ``timeout``.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal
 
@@ -128,9 +127,8 @@ class TensionRegulate(Skill):
             ModifiedForceReference,
         )
         from suture_engine.robot import endobot
-        from suture_engine.robot.params import E1
         from suture_engine.suture.knot import securing_directions
-        from suture_engine.suture.tension import TensionEstimator
+        from suture_engine.suture.tension import mounted_estimator
 
         p = self.params
         assert isinstance(p, TensionRegulateParams)
@@ -155,18 +153,17 @@ class TensionRegulate(Skill):
             tool = str(ctx.scene.robots[self._robot].tool)
         loop_end = tool == "stitcher" if tool else "stitcher" in p.robot
         e_world = rule.loop_end if loop_end else rule.post_end
-        rot = np.eye(3)
         base = ctx.base_poses.get(self._robot)
-        if base is not None:
-            rot = np.asarray(base[1], dtype=float).reshape(3, 3)
-        g_base = rot.T @ np.array([0.0, 0.0, -9.81])
-        prm = dataclasses.replace(
-            E1, gravity=(float(g_base[0]), float(g_base[1]), float(g_base[2]))
+        self._est, prm = mounted_estimator(
+            None if base is None else base[1],
+            e_world,
+            start.base_wrench,
+            q0,
+            ctx.dt,
+            self.CUTOFF_HZ,
         )
-        e_base = rot.T @ e_world
+        e_base = self._est.direction
         self._limit = float(ctx.scene.tension_limit) if ctx.scene is not None else 2.0 * p.tension
-        self._est = TensionEstimator(e_base, prm, dt=ctx.dt, cutoff=self.CUTOFF_HZ)
-        self._est.tare(np.asarray(start.base_wrench, dtype=float), q0)
         force_dt = 2.0 * ctx.dt if ctx.dt < 1.5e-3 else ctx.dt
         force = ExplicitForceController(p.kp, p.ki, p.kv, force_dt, limit=self._limit)
         ramp = ModifiedForceReference(p.tension, dt=force_dt) if p.ramp else None

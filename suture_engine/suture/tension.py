@@ -43,6 +43,7 @@ __all__ = [
     "TensionEstimator",
     "TensionEstimatorError",
     "gravity_wrench",
+    "mounted_estimator",
     "tip_wrench",
     "wrench_transform",
 ]
@@ -272,3 +273,38 @@ class TensionEstimator:
         force = s[:3]
         tension = -float(force @ self.direction)
         return TensionEstimate(tension, force.copy(), s[3:].copy())
+
+
+def mounted_estimator(
+    base_rotation: Vec | None,
+    direction_world: Vec,
+    start_wrench: Vec,
+    q0: Vec,
+    dt: float,
+    cutoff: float,
+) -> tuple[TensionEstimator, EndoBotParams]:
+    """A tension estimator for a robot mounted with ``base_rotation``, tared at rest.
+
+    Gravity is expressed in the base frame (the model's parameters, E1, are for a base
+    with z up), the pulling direction is turned into the base frame, and the estimator is
+    tared on ``start_wrench`` at the joints ``q0`` (the strand slack, 7.5.2).
+
+    Args:
+        base_rotation: row-major 3x3 rotation of the base in the world (None: identity).
+        direction_world: pulling direction e in the world frame [-].
+        start_wrench: the base sensor's reading at rest [N, N*m].
+        q0: the joints of that reading [rad, rad, rad, m].
+        dt: sample period [s].
+        cutoff: low-pass cut-off frequency [Hz].
+
+    Returns:
+        The estimator and the robot's parameters with gravity in its base frame.
+    """
+    import dataclasses
+
+    rot = np.eye(3) if base_rotation is None else np.asarray(base_rotation, float).reshape(3, 3)
+    g = rot.T @ np.array([0.0, 0.0, -9.81])
+    prm = dataclasses.replace(E1, gravity=(float(g[0]), float(g[1]), float(g[2])))
+    est = TensionEstimator(rot.T @ np.asarray(direction_world, float), prm, dt=dt, cutoff=cutoff)
+    est.tare(np.asarray(start_wrench, float), np.asarray(q0, float))
+    return est, prm
