@@ -44,11 +44,11 @@ from suture_engine.language.units import Angle, Length, Speed
 
 __all__ = ["BENT_ARM", "BENT_JAW_END", "Wrap", "WrapParams", "bent_arm", "segment_gap"]
 
-BENT_ARM = 8e-3
+BENT_ARM = 12e-3
 """Distance from the bent-tip grasper's universal joint to its jaw centre [m]; the joint
 sits this far behind the tool tip that the robot's kinematics reports (the tool's
 declared geometry)."""
-BENT_JAW_END = 12e-3
+BENT_JAW_END = 16e-3
 """Distance from the universal joint to the end of the bent jaws [m] (jaw centre plus
 half the 8 mm jaw)."""
 

@@ -86,14 +86,18 @@ def test_states_follow_the_thesis_steps() -> None:
         "present",
         "bend",
         "loop",
+        "lower-holder",
+        "point-down",
         "grab-tail",
+        "slide-off",
         "tighten",
     ]
 
 
-def test_the_bent_jaws_close_on_the_tail() -> None:
-    """grab-tail places the tool tip so that the bent jaws' centre (not the tool tip) is
-    at entry + (0, -8, 2) mm: re-derived from the scipy construction of the bent arm."""
+def test_the_bent_jaws_close_on_the_tail_end() -> None:
+    """grab-tail places the tool tip so that the bent jaws' centre (not the tool tip), with
+    the arm pointed down (``point-down``), is at entry + (0, 1.5 mm - tail, 3 mm): over the
+    tail's last capsule, ahead of the loop on the arm. Re-derived from scipy's rotations."""
     from skills.wrap import BENT_ARM
 
     proc: Any = load_procedure(PROC)
@@ -101,6 +105,7 @@ def test_the_bent_jaws_close_on_the_tail() -> None:
     rot = Rotation.from_euler("xyz", spec.base.rpy)
     base = (tuple(spec.base.position), tuple(rot.as_matrix().reshape(-1)))
     grab = proc.states["grab-tail"].params
+    tail = proc.params["tail"]
     entry = np.asarray(proc.scene.tissue.points[grab.target])
     tip = entry + np.asarray(grab.offset)
     q = ik_world(tip, 0.0, base)
@@ -109,9 +114,14 @@ def test_the_bent_jaws_close_on_the_tail() -> None:
     frame = rot * Rotation.from_euler("XYZ", q[:3])
     z = frame.as_matrix()[:, 2]
     assert z == pytest.approx((tip - base[0]) / np.linalg.norm(tip - base[0]), abs=1e-9)
-    arm = (frame * Rotation.from_euler("XY", proc.states["bend"].params.angles)).apply([0, 0, 1])
+    arm = (frame * Rotation.from_euler("XY", proc.states["point-down"].params.angles)).apply(
+        [0, 0, 1]
+    )
     jaws = tip - BENT_ARM * z + BENT_ARM * arm
-    assert np.linalg.norm(jaws - (entry + np.array([0.0, -8e-3, 2e-3]))) < 0.1e-3
+    assert np.linalg.norm(jaws - (entry + np.array([0.0, 1.5e-3 - tail, 3e-3]))) < 0.1e-3
+    # the arm points down (the jaws are its lowest point) and along -x, away from the
+    # grasper's side: backing out along +x draws the tail towards the grasper
+    assert arm[2] < -0.1 and arm[0] < -0.95
     assert proc.states["tied"].outcome == "succeeded"
 
 

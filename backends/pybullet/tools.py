@@ -562,7 +562,7 @@ class BentTipGrasper(Grasper):
 
     bend_x: float = 0.0
     bend_y: float = 0.0
-    tip_length: float = 8e-3
+    tip_length: float = 12e-3
     spare: int = 2
     collide_above: float = 0.5
     _shaft: tuple[Vec3, Quat] = ((0.0, 0.0, 0.1), _IDENTITY)
