@@ -66,21 +66,37 @@ def test_slide_to_tip_straddles_the_grasper_tip(mirror: bool, tail_mm: int) -> N
     up = (o2 - tip2) / np.linalg.norm(o2 - tip2)  # along the grasper stem, tip to RCM
     rel = goal - tip2
     lateral = float(np.linalg.norm(rel - (rel @ up) * up))
-    # just beyond the grasper tip along its stem ...
-    assert 2e-3 <= -(rel @ up) <= 4e-3
-    # ... on its axis, so that the grasper's tip lies between the stitcher's closed jaws
+    # 10 mm beyond the grasper tip along its stem ...
+    assert 8e-3 <= -(rel @ up) <= 12e-3
+    # ... on its axis, so that the grasper's axis lies between the stitcher's jaws
     # even with the 2 mm arrival tolerance
     assert lateral + slide.tolerance < JAW_INNER
-    # ... above the tissue, and the shafts' collision cylinders do not touch there
-    assert goal[2] > 5e-3
-    u1 = (o1 - goal) / np.linalg.norm(o1 - goal)
-    clearance = _segment_distance(goal + JAW_REGION * u1, o1, tip2 + JAW_REGION * up, o2)
-    assert clearance > 2.0 * SHAFT_RADIUS + 1e-3
-    # the pass follows the slide (after the grasper's roll)
-    assert proc.states["slide-to-tip"].on["done"] == "turn-grasper"
-    assert proc.states["turn-grasper"].on["done"] == "pass-needle"
+    # then 6 mm to the tail's side (away from the stitcher's RCM point), still 10 mm
+    # beyond the tip: the needle's crossing passes outside the tail, which leaves the
+    # jaws at ~35 deg to the stem (on the stitcher's side it would cross inside it)
+    under = proc.states["under"].params
+    assert under.relative_to == "grasper"
+    below = tip2 + np.asarray(under.target) + np.asarray(under.offset)
+    rel = below - tip2
+    towards_stitcher = (o1 - tip2) - ((o1 - tip2) @ up) * up
+    towards_stitcher /= np.linalg.norm(towards_stitcher)
+    assert 8e-3 <= -(rel @ up) <= 12e-3
+    assert -7e-3 <= rel @ towards_stitcher <= -5e-3
+    for goal in (goal, below):
+        # above the tissue; the stitcher's shaft (collision cylinder from 6 mm behind its
+        # tip) stays clear of the grasper's shaft and of its jaws (radius 1.5 mm)
+        assert goal[2] > 5e-3
+        u1 = (o1 - goal) / np.linalg.norm(o1 - goal)
+        clearance = _segment_distance(goal + JAW_REGION * u1, o1, tip2 + JAW_REGION * up, o2)
+        assert clearance > 2.0 * SHAFT_RADIUS + 1e-3
+        jaws = _segment_distance(goal + JAW_REGION * u1, o1, tip2 - 4e-3 * up, tip2 + JAW_REGION * up)
+        assert jaws > SHAFT_RADIUS + 1.5e-3
+    # slide, move under, pass the needle, retract the hook, back the grasper out
+    assert proc.states["slide-to-tip"].on["done"] == "under"
+    assert proc.states["under"].on["done"] == "pass-needle"
+    assert proc.states["retract-hook"].on["done"] == "pull-through"
     assert proc.states["over-hook"].params.direction == (
-        "back-to-front" if mirror else "front-to-back"
+        "front-to-back" if mirror else "back-to-front"
     )
 
 
@@ -109,10 +125,12 @@ def test_tighten_and_slide_timeouts_cover_their_moves() -> None:
     d = float(np.linalg.norm(tighten.params.target))
     assert tighten.timeout >= _min_jerk_duration(d, tighten.params.speed) + 1.0
     slide = proc.states["slide-to-tip"]
-    # the slide starts where the loop over the hook ends: a loop radius off the stem,
-    # 10 mm up it
-    radius = proc.states["over-hook"].params.radius
-    longest = float(np.linalg.norm(np.asarray(slide.params.target))) + radius + 10e-3
+    # the slide starts where the take-up after the loop over the hook ends: a loop
+    # radius off the stem, `height` up it, then moved by the take-up
+    wrap = proc.states["over-hook"].params
+    take_up = float(np.linalg.norm(np.asarray(proc.states["take-up"].params.target)))
+    longest = float(np.linalg.norm(np.asarray(slide.params.target)))
+    longest += wrap.radius + wrap.height + take_up
     assert slide.timeout >= _min_jerk_duration(longest, slide.params.speed) + 1.0
 
 
@@ -166,8 +184,9 @@ def test_no_retry_re_runs_a_step_that_cannot_be_repeated(algorithm: int) -> None
     assert checked >= 2
 
 
-HOOK_REACH = 6e-3
-"""How far the extended hook passes the grasper's jaw centre along the stem [m]."""
+HOOK_REACH = 2.5e-3
+"""How far the extended hook passes the grasper's jaw centre along the stem [m]: the
+shank's end, 1 mm beyond its offset (``Grasper.hook_reach``, 1.5 mm)."""
 
 
 @pytest.mark.parametrize("tail_mm", [20, 30, 50])

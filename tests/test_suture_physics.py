@@ -166,7 +166,9 @@ def test_hook_catches_and_lifts_thread_only_when_extended(extend: bool) -> None:
         # Tool +z points down, the hook's plane (tool x-z) across the thread (world y-z).
         down = p.getQuaternionFromEuler([math.pi, 0.0, math.pi / 2])
         mid = scene.suture.centerline()[20]
-        x, z = mid[0], mid[2]  # the bend sits hook_reach + 0.5 mm below the tool tip
+        # the bend sits hook_reach + 0.5 mm below the tool tip: put it 6.5 mm below the
+        # thread, so that the barb (4.5 mm) passes under the thread on the way across
+        x, z = mid[0], mid[2] + hook.hook_reach + 0.5e-3 - 6.5e-3
         y0, y1 = mid[1] - HOOK_MOUTH - 4e-3, mid[1] - HOOK_MOUTH / 2
         hook.set_pose((x, y0, z), down)
         if extend:

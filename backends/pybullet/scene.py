@@ -624,7 +624,10 @@ def _build_model(
             tool = BentTipGrasper.create(client, name, pos, quat, suture=suture, hook=False)
         else:
             hook = spec.tool == "hook-grasper"
-            tool = Grasper.create(client, name, pos, quat, suture=suture, hook=hook)
+            # the hook grasper's jaws are solid (a loop rests on them, algorithm 2)
+            tool = Grasper.create(
+                client, name, pos, quat, suture=suture, hook=hook, solid=hook
+            )
             if name == holder:
                 tool.grip(len(suture.bodies) - 1)
         tool.mount(robot.body_id, robot.tool_link)

@@ -254,13 +254,26 @@ class Grasper(Tool):
         reach: largest distance from the jaw centre to a thread capsule's axis that the
             closing jaws still catch [m].
         hook_travel_time: hook travel time, retracted to extended [s].
-        hook_reach: how far the extended hook's tip passes the jaw centre [m].
+        hook_reach: how far the extended hook's shank passes the jaw centre [m]. At 1.5 mm
+            the hook's crook (the mouth between shank and barb, 4.5 mm deep) spans the jaws
+            from 3 mm behind the jaw centre to 2 mm beyond it, so a strand seated there
+            lies over the grip (a crook beyond the jaws' end, 6 mm, held the strand
+            distal of the held tail, and the loop slid off the tip without catching it).
+        solid: the jaws, once they hold the thread, collide with the rest of it (not with
+            the held capsule and its ``spare`` neighbours, which the closed jaws enclose,
+            nor with the needle), so that a loop around them rests on them as on real
+            jaws; otherwise the jaws never touch the thread.
+        spare: capsules on each side of the held one that the solid jaws let through.
+        jaw_friction: friction coefficient of the solid jaws against the thread [-].
     """
 
     travel_time: float = 0.1
     reach: float = 3e-3
     hook_travel_time: float = 0.3
-    hook_reach: float = 6e-3
+    hook_reach: float = 1.5e-3
+    solid: bool = False
+    spare: int = 2
+    jaw_friction: float = 0.1
     state: JawState = JawState.OPEN
     suture: Suture | None = None
     held_segment: int = -1
@@ -274,6 +287,7 @@ class Grasper(Tool):
     _jaw_orientation: Quat = _IDENTITY
     _hook_drive: int = -1
     _held: list[int] = field(default_factory=list)
+    _solid_for: int = -1
 
     @classmethod
     def create(
@@ -440,7 +454,31 @@ class Grasper(Tool):
                         self.held_segment = i
                 else:
                     self.state = JawState.OPEN
+        if self.solid and self.held_segment != self._solid_for:
+            self._solidify()
         self._step_hook()
+
+    def _solidify(self) -> None:
+        """Solid jaws (see ``solid``): collide with the thread while they hold it, except
+        with the held capsule, its ``spare`` neighbours and the needle."""
+        import pybullet as p
+
+        c = self.client
+        held = self.held_segment
+        on = held >= 0 and self.suture is not None
+        p.setCollisionFilterGroupMask(self.body, -1, int(on), 0x7FFF if on else 0, physicsClientId=c)
+        if self.suture is not None:
+            for i, body in enumerate(self.suture.bodies):
+                enable = int(on and abs(i - held) > self.spare)
+                p.setCollisionFilterPair(self.body, body, -1, -1, enable, physicsClientId=c)
+            if self.suture.needle_body >= 0:
+                p.setCollisionFilterPair(
+                    self.body, self.suture.needle_body, -1, -1, 0, physicsClientId=c
+                )
+        if self.hook_body >= 0:
+            p.setCollisionFilterPair(self.body, self.hook_body, -1, -1, 0, physicsClientId=c)
+        p.changeDynamics(self.body, -1, lateralFriction=self.jaw_friction, physicsClientId=c)
+        self._solid_for = held
 
     # ---- flexible hook (Fig. 4.6) -------------------------------------------------------
 
