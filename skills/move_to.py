@@ -62,7 +62,8 @@ class MoveTo(Skill):
     rest-to-rest minimum-jerk (quintic) trajectory whose duration makes the
     straight-line peak tool speed ``speed``. The skill succeeds once the
     trajectory is over and the measured tool tip is within ``tolerance`` [m] of
-    the goal, and fails if it is not there ``SETTLE_S`` [s] later.
+    the goal, and fails if it is not there ``SETTLE_S`` [s] later (with a roll, also
+    ``ROLL_SETTLE_S``).
     """
 
     name: ClassVar[str] = "move-to"
@@ -74,6 +75,10 @@ class MoveTo(Skill):
     """Peak roll rate of the tool [rad/s]: a 180 deg roll takes 5.9 s."""
     ROLL_TOLERANCE: ClassVar[float] = math.radians(3.0)
     """Arrival tolerance of the roll when the move sets one [rad]."""
+    ROLL_SETTLE_S: ClassVar[float] = 1.0
+    """Extra settling time when the move sets a roll [s]: on the surgical scene the roll
+    joint of the grasper (its tool loaded by the held thread) ends a 180 deg roll ~4 deg
+    behind and closes the last degree ~1.2 s after the trajectory."""
 
     def __init__(self, params: SkillParams) -> None:
         super().__init__(params)
@@ -187,7 +192,8 @@ class MoveTo(Skill):
         roll_error = 0.0 if p.roll is None else abs(float(obs.robots[self._robot].q[2]) - p.roll)
         if error <= p.tolerance and roll_error <= self.ROLL_TOLERANCE:
             return StepResult(command, SkillStatus.SUCCESS)
-        if t >= self._traj.duration + self.SETTLE_S:
+        settle = self.SETTLE_S + (0.0 if p.roll is None else self.ROLL_SETTLE_S)
+        if t >= self._traj.duration + settle:
             return StepResult(
                 command,
                 SkillStatus.FAILURE,

@@ -625,9 +625,7 @@ def _build_model(
         else:
             hook = spec.tool == "hook-grasper"
             # the hook grasper's jaws are solid (a loop rests on them, algorithm 2)
-            tool = Grasper.create(
-                client, name, pos, quat, suture=suture, hook=hook, solid=hook
-            )
+            tool = Grasper.create(client, name, pos, quat, suture=suture, hook=hook, solid=hook)
             if name == holder:
                 tool.grip(len(suture.bodies) - 1)
         tool.mount(robot.body_id, robot.tool_link)

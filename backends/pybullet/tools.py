@@ -466,7 +466,9 @@ class Grasper(Tool):
         c = self.client
         held = self.held_segment
         on = held >= 0 and self.suture is not None
-        p.setCollisionFilterGroupMask(self.body, -1, int(on), 0x7FFF if on else 0, physicsClientId=c)
+        p.setCollisionFilterGroupMask(
+            self.body, -1, int(on), 0x7FFF if on else 0, physicsClientId=c
+        )
         if self.suture is not None:
             for i, body in enumerate(self.suture.bodies):
                 enable = int(on and abs(i - held) > self.spare)
