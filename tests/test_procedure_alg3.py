@@ -89,6 +89,7 @@ def test_states_follow_the_thesis_steps() -> None:
         "lower-holder",
         "point-down",
         "grab-tail",
+        "draw-tail",
         "slide-off",
         "tighten",
     ]
@@ -96,8 +97,8 @@ def test_states_follow_the_thesis_steps() -> None:
 
 def test_the_bent_jaws_close_on_the_tail_end() -> None:
     """grab-tail places the tool tip so that the bent jaws' centre (not the tool tip), with
-    the arm pointed down (``point-down``), is at entry + (0, 1.5 mm - tail, 3 mm): over the
-    tail's last capsule, ahead of the loop on the arm. Re-derived from scipy's rotations."""
+    the arm pointed down (``point-down``), is at entry + (0, -tail, 3 mm): over the
+    tail's end, ahead of the loop on the arm. Re-derived from scipy's rotations."""
     from skills.wrap import BENT_ARM
 
     proc: Any = load_procedure(PROC)
@@ -118,7 +119,7 @@ def test_the_bent_jaws_close_on_the_tail_end() -> None:
         [0, 0, 1]
     )
     jaws = tip - BENT_ARM * z + BENT_ARM * arm
-    assert np.linalg.norm(jaws - (entry + np.array([0.0, 1.5e-3 - tail, 3e-3]))) < 0.1e-3
+    assert np.linalg.norm(jaws - (entry + np.array([0.0, -tail, 3e-3]))) < 0.1e-3
     # the arm points down (the jaws are its lowest point) and along -x, away from the
     # grasper's side: backing out along +x draws the tail towards the grasper
     assert arm[2] < -0.1 and arm[0] < -0.95

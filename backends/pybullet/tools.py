@@ -259,6 +259,11 @@ class Grasper(Tool):
             from 3 mm behind the jaw centre to 2 mm beyond it, so a strand seated there
             lies over the grip (a crook beyond the jaws' end, 6 mm, held the strand
             distal of the held tail, and the loop slid off the tip without catching it).
+        hook_release: the hook touches the thread only while it is extended beyond this
+            fraction of its travel [-]: retracting, it lets the strand go after
+            ``(1 - hook_release) * (hook_reach + 12 mm)`` of travel (0.8: 2.7 mm, the crook
+            still over the jaws, where the solid jaws take the loop; dragged further, to
+            half travel, the strand caught on the jaws' end and spiked to 9.7 N for 8 ms).
         solid: the jaws, once they hold the thread, collide with the rest of it (not with
             the held capsule and its ``spare`` neighbours, which the closed jaws enclose,
             nor with the needle), so that a loop around them rests on them as on real
@@ -271,6 +276,7 @@ class Grasper(Tool):
     reach: float = 3e-3
     hook_travel_time: float = 0.3
     hook_reach: float = 1.5e-3
+    hook_release: float = 0.8
     solid: bool = False
     spare: int = 2
     jaw_friction: float = 0.1
@@ -556,8 +562,8 @@ class Grasper(Tool):
         delta = self._hook_target - self.hook_extension
         before = self.hook_extension
         self.hook_extension += max(-rate, min(rate, delta))
-        if (before < 0.5) != (self.hook_extension < 0.5):
-            self._set_hook_collision(self.hook_extension >= 0.5)
+        if (before < self.hook_release) != (self.hook_extension < self.hook_release):
+            self._set_hook_collision(self.hook_extension >= self.hook_release)
         self._drive_hook()
 
     def _drive_hook(self) -> None:
@@ -591,13 +597,16 @@ class BentTipGrasper(Grasper):
     the jaw centre sits ``tip_length`` [m] along the bent z.
 
     Mounted on a robot and bent by more than ``collide_above`` [rad] about either axis,
-    the jaws (the bent arm) collide with the thread, so that a loop wrapped around the
-    bent arm rests on it (4.4.3: the bend keeps the loop from slipping off), except with
-    the capsule the jaws hold and ``spare`` capsules on each side of it (held by
-    constraint, inside the closed jaws), and with the needle; they then also meet the
-    other robot's instrument (the scene filters the pad and their own robot). Straight,
-    they pass through the thread and grasp it by constraint as every grasper does (the
-    solid jaw box would shove a thread it closes on).
+    the bent link from the joint to the jaws (``link_body``) collides with the thread, so
+    that a loop wrapped around the bent arm rests on it (4.4.3: the bend keeps the loop
+    from slipping off), except with the capsule the jaws hold and ``spare`` capsules on
+    each side of it, and with the needle; it then also meets the other robot's
+    instrument (the scene filters the pad and their own robot). The open jaws (the box
+    about the jaw centre) collide likewise; closed on the thread they pass through it,
+    as every grasper's jaws do, so that a loop drawn off the bent arm slips over the
+    closed jaws onto what they hold (4.4.3 step 4). Straight, link and jaws pass
+    through the thread and grasp it by constraint (the solid jaw box would shove a
+    thread it closes on).
     """
 
     bend_x: float = 0.0
@@ -605,89 +614,122 @@ class BentTipGrasper(Grasper):
     tip_length: float = 12e-3
     spare: int = 2
     collide_above: float = 0.5
+    link_body: int = -1
+    _link_drive: int = -1
     _shaft: tuple[Vec3, Quat] = ((0.0, 0.0, 0.1), _IDENTITY)
-    _passed: list[int] = field(default_factory=list)
+    _passed: dict[int, list[int]] = field(default_factory=dict)
     _filtered_for: int = -3
-    _collides: bool = False
+    _collides: tuple[bool, bool] = (False, False)
 
     def _make_body(self, half_extents: Vec3, mass: float, rgba: list[float]) -> None:
-        """The jaws (a box about the jaw centre) and the bent link behind them: a capsule
-        of the jaws' half width from the universal joint (``tip_length`` behind the jaw
-        centre) to the jaws, so a loop cannot slip between the shaft and the jaws."""
+        """The jaws (a box about the jaw centre) and, as a second body fixed to them, the
+        bent link behind them: a capsule of the jaws' half width from the universal joint
+        (``tip_length`` behind the jaw centre) to the jaws, so a loop cannot slip between
+        the shaft and the jaws."""
         import pybullet as p
 
+        super()._make_body(half_extents, mass, rgba)
         c = self.client
         link = self.tip_length - half_extents[2]
         radius = min(half_extents[0], half_extents[1])
-        shapes = [p.GEOM_BOX, p.GEOM_CAPSULE]
-        frames = [[0.0, 0.0, 0.0], [0.0, 0.0, -(half_extents[2] + link / 2)]]
-        col = p.createCollisionShapeArray(
-            shapeTypes=shapes,
-            halfExtents=[list(half_extents), [0.0, 0.0, 0.0]],
-            radii=[0.0, radius],
-            lengths=[0.0, link],
-            collisionFramePositions=frames,
+        frame = [0.0, 0.0, -(half_extents[2] + link / 2)]
+        col = p.createCollisionShape(
+            p.GEOM_CAPSULE,
+            radius=radius,
+            height=link,
+            collisionFramePosition=frame,
             physicsClientId=c,
         )
-        vis = p.createVisualShapeArray(
-            shapeTypes=shapes,
-            halfExtents=[list(half_extents), [0.0, 0.0, 0.0]],
-            radii=[0.0, radius],
-            lengths=[0.0, link],
-            visualFramePositions=frames,
-            rgbaColors=[rgba, rgba],
+        vis = p.createVisualShape(
+            p.GEOM_CAPSULE,
+            radius=radius,
+            length=link,
+            visualFramePosition=frame,
+            rgbaColor=rgba,
             physicsClientId=c,
         )
-        self.body = p.createMultiBody(mass, col, vis, [0, 0, 0], physicsClientId=c)
-        p.setCollisionFilterGroupMask(self.body, -1, 0, 0, physicsClientId=c)
+        self.link_body = p.createMultiBody(mass / 4, col, vis, [0, 0, 0], physicsClientId=c)
+        p.setCollisionFilterGroupMask(self.link_body, -1, 0, 0, physicsClientId=c)
+        p.setCollisionFilterPair(self.body, self.link_body, -1, -1, 0, physicsClientId=c)
+        self._link_drive = p.createConstraint(
+            self.body,
+            -1,
+            self.link_body,
+            -1,
+            p.JOINT_FIXED,
+            [0, 0, 0],
+            [0, 0, 0],
+            [0, 0, 0],
+            physicsClientId=c,
+        )
+        p.changeConstraint(self._link_drive, maxForce=self.drive_force, physicsClientId=c)
 
-    def _update_collision(self) -> None:
-        """Jaws that collide when mounted and bent beyond ``collide_above``, else none;
-        never with the needle nor the held capsules."""
+    def _parts(self) -> list[int]:
+        return [*super()._parts(), self.link_body]
+
+    def mount(self, robot_body: int, link: int, offset: Vec3 = (0.0, 0.0, 0.0)) -> None:
+        """Mount the jaws (see :meth:`Tool.mount`) and bring the bent link with them."""
         import pybullet as p
 
-        bent = max(abs(self.bend_x), abs(self.bend_y)) > self.collide_above
-        on = self._mounted and bent
-        if on == self._collides:
+        super().mount(robot_body, link, offset)
+        pos, orn = self.pose()
+        p.resetBasePositionAndOrientation(self.link_body, pos, orn, physicsClientId=self.client)
+
+    def _update_collision(self) -> None:
+        """The bent link collides when mounted and bent beyond ``collide_above``; the jaws
+        then too while they hold nothing; never with the needle nor the held capsules."""
+        import pybullet as p
+
+        bent = self._mounted and max(abs(self.bend_x), abs(self.bend_y)) > self.collide_above
+        want = (bent, bent and self._grasp < 0)
+        if want == self._collides:
             return
         c = self.client
-        group, mask = (1, 0x7FFF) if on else (0, 0)
-        p.setCollisionFilterGroupMask(self.body, -1, group, mask, physicsClientId=c)
-        if on and self.suture is not None and self.suture.needle_body >= 0:
-            p.setCollisionFilterPair(
-                self.body, self.suture.needle_body, -1, -1, 0, physicsClientId=c
-            )
-        self._collides = on
+        for body, on, was in zip((self.link_body, self.body), want, self._collides, strict=True):
+            if on == was:
+                continue
+            group, mask = (1, 0x7FFF) if on else (0, 0)
+            p.setCollisionFilterGroupMask(body, -1, group, mask, physicsClientId=c)
+            if on and self.suture is not None and self.suture.needle_body >= 0:
+                p.setCollisionFilterPair(
+                    body, self.suture.needle_body, -1, -1, 0, physicsClientId=c
+                )
+        self._collides = want
+        self._filtered_for = -3
         self._filter_thread()
 
     def _filter_thread(self) -> None:
-        """Per thread capsule, a pair filter: collide when the jaws collide, except with
-        the held capsule and its ``spare`` neighbours (a pair filter overrides the
-        group mask, so the straight jaws get every pair off)."""
+        """Per thread capsule and part, a pair filter: collide when the part collides,
+        except with the held capsule and its ``spare`` neighbours (a pair filter overrides
+        the group mask, so a passing part gets every pair off)."""
         import pybullet as p
 
         if self.suture is None:
             return
-        held = self.held_segment if self._collides else -2
+        held = self.held_segment if any(self._collides) else -2
         if held == self._filtered_for and self._passed:
             return
         bodies = self.suture.bodies
-        if len(self._passed) != len(bodies):
-            self._passed = [-1] * len(bodies)
-        for i, body in enumerate(bodies):
-            near = held >= 0 and abs(i - held) <= self.spare
-            enable = int(self._collides and not near)
-            if self._passed[i] != enable:
-                p.setCollisionFilterPair(
-                    self.body, body, -1, -1, enable, physicsClientId=self.client
-                )
-                self._passed[i] = enable
+        for part, on in zip((self.link_body, self.body), self._collides, strict=True):
+            passed = self._passed.setdefault(part, [])
+            if len(passed) != len(bodies):
+                passed[:] = [-1] * len(bodies)
+            for i, body in enumerate(bodies):
+                near = held >= 0 and abs(i - held) <= self.spare
+                enable = int(on and not near)
+                if passed[i] != enable:
+                    p.setCollisionFilterPair(
+                        part, body, -1, -1, enable, physicsClientId=self.client
+                    )
+                    passed[i] = enable
         self._filtered_for = held
 
     def step(self) -> None:
-        """Advance the jaws (as :meth:`Grasper.step`) and keep the held capsules passable."""
+        """Advance the jaws (as :meth:`Grasper.step`); jaws that close on the thread stop
+        colliding, and the held capsules stay passable."""
         super().step()
-        if self._collides and self.held_segment != self._filtered_for:
+        self._update_collision()
+        if any(self._collides) and self.held_segment != self._filtered_for:
             self._filter_thread()
 
     def set_bend(self, bend_x: float, bend_y: float) -> None:
