@@ -601,12 +601,12 @@ class BentTipGrasper(Grasper):
     that a loop wrapped around the bent arm rests on it (4.4.3: the bend keeps the loop
     from slipping off), except with the capsule the jaws hold and ``spare`` capsules on
     each side of it, and with the needle; it then also meets the other robot's
-    instrument (the scene filters the pad and their own robot). The open jaws (the box
-    about the jaw centre) collide likewise; closed on the thread they pass through it,
-    as every grasper's jaws do, so that a loop drawn off the bent arm slips over the
-    closed jaws onto what they hold (4.4.3 step 4). Straight, link and jaws pass
-    through the thread and grasp it by constraint (the solid jaw box would shove a
-    thread it closes on).
+    instrument (the scene filters the pad and their own robot). The jaws collide likewise,
+    as a capsule of their half width (drawn as a box), so that a loop drawn along the
+    bent arm slides over the link and the closed jaws and off their end onto what they
+    hold (4.4.3 step 4), and cannot slip between the jaws and the held thread. Straight,
+    link and jaws pass through the thread and grasp it by constraint (the solid jaws
+    would shove a thread they close on).
     """
 
     bend_x: float = 0.0
@@ -622,16 +622,25 @@ class BentTipGrasper(Grasper):
     _collides: tuple[bool, bool] = (False, False)
 
     def _make_body(self, half_extents: Vec3, mass: float, rgba: list[float]) -> None:
-        """The jaws (a box about the jaw centre) and, as a second body fixed to them, the
+        """The jaws (about the jaw centre) and, as a second body fixed to them, the
         bent link behind them: a capsule of the jaws' half width from the universal joint
         (``tip_length`` behind the jaw centre) to the jaws, so a loop cannot slip between
         the shaft and the jaws."""
         import pybullet as p
 
-        super()._make_body(half_extents, mass, rgba)
         c = self.client
-        link = self.tip_length - half_extents[2]
+        # The jaws collide as a capsule of their half width (their box is only drawn),
+        # so that a loop slides smoothly from the bent link over the closed jaws.
         radius = min(half_extents[0], half_extents[1])
+        jaw_col = p.createCollisionShape(
+            p.GEOM_CAPSULE, radius=radius, height=2 * (half_extents[2] - radius), physicsClientId=c
+        )
+        jaw_vis = p.createVisualShape(
+            p.GEOM_BOX, halfExtents=list(half_extents), rgbaColor=rgba, physicsClientId=c
+        )
+        self.body = p.createMultiBody(mass, jaw_col, jaw_vis, [0, 0, 0], physicsClientId=c)
+        p.setCollisionFilterGroupMask(self.body, -1, 0, 0, physicsClientId=c)
+        link = self.tip_length - half_extents[2]
         frame = [0.0, 0.0, -(half_extents[2] + link / 2)]
         col = p.createCollisionShape(
             p.GEOM_CAPSULE,
@@ -676,12 +685,12 @@ class BentTipGrasper(Grasper):
         p.resetBasePositionAndOrientation(self.link_body, pos, orn, physicsClientId=self.client)
 
     def _update_collision(self) -> None:
-        """The bent link collides when mounted and bent beyond ``collide_above``; the jaws
-        then too while they hold nothing; never with the needle nor the held capsules."""
+        """Link and jaws collide when mounted and bent beyond ``collide_above``; never
+        with the needle nor the held capsules."""
         import pybullet as p
 
         bent = self._mounted and max(abs(self.bend_x), abs(self.bend_y)) > self.collide_above
-        want = (bent, bent and self._grasp < 0)
+        want = (bent, bent)
         if want == self._collides:
             return
         c = self.client
@@ -725,8 +734,7 @@ class BentTipGrasper(Grasper):
         self._filtered_for = held
 
     def step(self) -> None:
-        """Advance the jaws (as :meth:`Grasper.step`); jaws that close on the thread stop
-        colliding, and the held capsules stay passable."""
+        """Advance the jaws (as :meth:`Grasper.step`) and keep the held capsules passable."""
         super().step()
         self._update_collision()
         if any(self._collides) and self.held_segment != self._filtered_for:
