@@ -223,6 +223,28 @@ def test_surgical_jaws_turn_with_the_measured_bend() -> None:
             + BENT_ARM * r_jaw.as_matrix()[:, 2]
         )
         np.testing.assert_allclose(jaw_pos, expected, atol=5e-4)
+        # the collision shapes (jaws, and the link as a body fixed to them) cover the arm
+        # the skills declare, from the joint to the jaws' end, with no gap between them
+        import pybullet as p
+
+        from skills.wrap import BENT_JAW_END
+
+        tool = be.scene.tools["endobot_2"]
+        link_pos, link_orn = p.getBasePositionAndOrientation(
+            tool.link_body, physicsClientId=tool.client
+        )
+        np.testing.assert_allclose(link_pos, jaw_pos, atol=2e-4)
+        covered = []
+        for body in (tool.link_body, tool.body):
+            (shape,) = p.getCollisionShapeData(body, -1, physicsClientId=tool.client)
+            assert shape[2] == p.GEOM_CAPSULE
+            height, radius = shape[3][0], shape[3][1]
+            centre = shape[5][2]  # along the jaw axis, from the jaw centre
+            assert radius == pytest.approx(1.5e-3)
+            covered.append((centre - height / 2 - radius, centre + height / 2 + radius))
+        start = -BENT_ARM  # the universal joint, in the jaw frame
+        (l0, l1), (j0, j1) = covered
+        assert l0 <= start + 1e-9 and l1 >= j0 and j1 == pytest.approx(BENT_JAW_END + start)
     finally:
         be.close()
 
