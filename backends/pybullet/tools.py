@@ -466,15 +466,15 @@ class Grasper(Tool):
 
     def _solidify(self) -> None:
         """Solid jaws (see ``solid``): collide with the thread while they hold it, except
-        with the held capsule, its ``spare`` neighbours and the needle."""
+        with the held capsule, its ``spare`` neighbours and the needle; never with the
+        other tool (the stitcher slides along them, 4.4.1 step 5)."""
         import pybullet as p
 
         c = self.client
         held = self.held_segment
         on = held >= 0 and self.suture is not None
-        p.setCollisionFilterGroupMask(
-            self.body, -1, int(on), 0x7FFF if on else 0, physicsClientId=c
-        )
+        # the group mask stays 0 (no contact with the tools, robots or tissue); a pair
+        # filter overrides it, so each thread capsule is turned on one by one
         if self.suture is not None:
             for i, body in enumerate(self.suture.bodies):
                 enable = int(on and abs(i - held) > self.spare)
