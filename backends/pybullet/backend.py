@@ -135,7 +135,7 @@ class PyBulletBackend:
             (:func:`backends.pybullet.scene.stitch_points`).
         bend: the universal joint's start angles (about x, then about the turned y)
             [rad] of every bent-tip grasper; None: straight. The jaws turn about a point
-            ``tip_length`` (8 mm) behind the robot's tool tip, so the bent jaws are off
+            ``tip_length`` (12 mm) behind the robot's tool tip, so the bent jaws are off
             the tool tip that the robot's kinematics reports. A tool command's ``bend``
             then drives the joint towards its setpoint at :attr:`BEND_RATE` per axis,
             and the tool state reports the joint's angles (its encoders), in both the
