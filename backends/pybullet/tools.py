@@ -612,7 +612,6 @@ class BentTipGrasper(Grasper):
     bend_x: float = 0.0
     bend_y: float = 0.0
     tip_length: float = 12e-3
-    spare: int = 2
     collide_above: float = 0.5
     link_body: int = -1
     _link_drive: int = -1
