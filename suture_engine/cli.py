@@ -236,7 +236,13 @@ def diff(
 
 @app.command()
 def knot(
-    file: Annotated[Path, typer.Argument(help="Centerline: .npy, .json or text (N x 3).")],
+    file: Annotated[
+        Path,
+        typer.Argument(
+            help="Centerline: .npy, .json or text (N x 3); or a run's trace.mcap: the knot "
+            "at the end of each state."
+        ),
+    ],
     json_: Annotated[bool, typer.Option("--json", help="Print one JSON object.")] = False,
     seed: Annotated[int, typer.Option(help="Seed of the projection directions.")] = 0,
     tissue_point: Annotated[
@@ -247,7 +253,7 @@ def knot(
         tuple[float, float, float] | None, typer.Option(help="Tissue normal.")
     ] = None,
 ) -> None:
-    """Classify the knot held by a suture centerline (type, invariants, geometry)."""
+    """Classify the knot held by a suture centerline, or by a run's thread state by state."""
     from suture_engine.suture.cli_knot import knot_command
 
     raise typer.Exit(

@@ -7,7 +7,12 @@ and invariants (``--json`` for one JSON object). Optionally, with
 ``--tissue-point`` and ``--tissue-normal``, also the geometry: seated, post
 straight, loop size.
 
-Exit codes: 0 classified, 1 not a valid centerline, 2 I/O error.
+Given a run's trace (``.mcap``) instead, it prints the knot the simulated thread held
+at the end of each visited state, with the peak true tension during the state
+(:mod:`suture_engine.suture.timeline`): where a knot formed and where it was lost.
+
+Exit codes: 0 classified, 1 not a valid centerline (or a trace without a thread),
+2 I/O error.
 """
 
 from __future__ import annotations
@@ -66,6 +71,8 @@ def knot_command(
     """
     from suture_engine.suture.topology import InvalidCenterline, classify_knot
 
+    if path.suffix.lower() == ".mcap":
+        return timeline_command(path, as_json=as_json, seed=seed)
     try:
         points = load_centerline(path)
     except OSError as exc:
@@ -108,5 +115,44 @@ def knot_command(
         print(
             f"  seated: {out['seated']}   height: {out['height']}   "
             f"post straight: {out['post_straight']}   straightness: {out['straightness']}"
+        )
+    return 0
+
+
+def timeline_command(path: Path, *, as_json: bool = False, seed: int = 0) -> int:
+    """Print the thread's knot at the end of each state of a recorded run.
+
+    Args:
+        path: the run's trace (``trace.mcap``).
+        as_json: print one JSON list of rows instead of a table.
+        seed: classifier seed.
+
+    Returns:
+        The exit code.
+    """
+    from dataclasses import asdict
+
+    from suture_engine.suture.timeline import NoGroundTruth, knot_timeline
+    from suture_engine.trace.errors import TraceError, TraceIOError
+
+    try:
+        rows = list(knot_timeline(path, seed=seed))
+    except TraceIOError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except (TraceError, NoGroundTruth) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 1
+    if as_json:
+        print(json.dumps([asdict(r) for r in rows]))
+        return 0
+    width = max([len(r.state) for r in rows] + [5])
+    print(f"{'state':<{width}}  {'start s':>8}  {'end s':>8}  {'knot':<12} {'det':>4}  peak true N")
+    for r in rows:
+        det = "" if r.determinant is None else str(r.determinant)
+        peak = "" if r.peak_tension_N is None else f"{r.peak_tension_N:.2f}"
+        print(
+            f"{r.state:<{width}}  {r.start_s:8.2f}  {r.end_s:8.2f}  {r.knot or '-':<12} "
+            f"{det:>4}  {peak}"
         )
     return 0
