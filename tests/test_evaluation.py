@@ -223,3 +223,15 @@ def test_with_the_wound_a_thread_hanging_below_the_plane_off_the_tissue_is_no_bi
     # a bite across the wound's line but beyond its end (+ 5 mm margin) does not count
     short = ((-15 * MM, 0.0, 0.0), (-8 * MM, 0.0, 0.0))
     assert len(find_bites(pts, SURFACE, NORMAL, wound=short)) == 1
+
+
+def test_a_knot_whose_thread_left_the_tissue_is_flagged() -> None:
+    one = _thread(SITES[:1])
+    assert knot_entries(one, SURFACE, NORMAL, 0.5 * MM)[0]["through_tissue"] is True
+    # the same knot with the thread lifted clear of the tissue: still a square knot, but
+    # it binds no stitch
+    lifted = one + np.array([0.0, 0.0, 10 * MM])
+    entry = knot_entries(lifted, SURFACE, NORMAL, 0.5 * MM)[0]
+    assert entry["type"] == "square" and entry["through_tissue"] is False
+    entries = knot_entries(_thread(SITES), SURFACE, NORMAL, 0.5 * MM)
+    assert [e["through_tissue"] for e in entries] == [True, True, True]

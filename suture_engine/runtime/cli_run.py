@@ -21,6 +21,14 @@ def _error(message: str) -> None:
     Console(stderr=True, highlight=False).print(f"[bold red]error:[/] {message}", markup=True)
 
 
+def _knot_text(entry: Any) -> str:
+    """A knot entry's type, flagged when its thread no longer passes through the tissue."""
+    text = str(entry.get("type"))
+    if entry.get("through_tissue") is False:
+        text += " (thread out of the tissue: no stitch bound)"
+    return text
+
+
 def _print_summary(summary: object, out_dir: Path | None) -> None:
     from rich.console import Console
     from rich.table import Table
@@ -44,9 +52,9 @@ def _print_summary(summary: object, out_dir: Path | None) -> None:
     ]
     knot = getattr(s, "knot", None)
     if knot is not None and hasattr(knot, "get") and knot.get("type"):
-        rows.append(("knot (ground truth)", str(knot["type"])))
+        rows.append(("knot (ground truth)", _knot_text(knot)))
     elif isinstance(knot, list) and knot:  # one entry per stitch
-        types = ", ".join(str(k.get("type")) for k in knot)
+        types = ", ".join(_knot_text(k) for k in knot)
         rows.append(("knots (ground truth)", types))
     else:
         rows.append(("knot", "not checked: this backend simulates no thread"))

@@ -30,7 +30,9 @@ to skills.
   tissue plane, :func:`suture_engine.suture.geometry.knot_summary`) and
   ``post_straight`` with its ``lay`` from
   :func:`suture_engine.suture.knot.knot_lay` (True: square lay; False: two
-  half hitches, thesis Fig. 7.4).
+  half hitches, thesis Fig. 7.4), and ``through_tissue``: whether the thread of the
+  entry still passes through the tissue (has a bite). A knot whose thread has come out
+  of the tissue binds no stitch: it is tied, but it is not a surgical knot.
 """
 
 from __future__ import annotations
@@ -326,6 +328,8 @@ def knot_entries(
             entry = {"type": None, "error": str(exc)}
         if len(bites) > 1:
             entry["stitch"] = k + 1
+        # every piece holds one bite when there are several; a single piece holds them all
+        entry["through_tissue"] = len(bites) > 0
         if entry.get("type") in (None, "unknot"):
             # no knot to lie square or as half hitches: strands that merely touch are not a lay
             entry["post_straight"] = None
