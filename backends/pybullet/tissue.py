@@ -14,6 +14,11 @@ within ``capture`` [m] of it
 * is pulled onto the channel by a lateral spring-damper (``k_lateral`` [N/m],
   ``c_lateral`` [N*s/m]), so the thread slides along the channel but cannot leave it
   sideways,
+* passes through the two puncture holes as through eyelets once the stitch is made: the
+  thread's point nearest each hole is pulled onto it, across the thread only
+  (``k_hole`` [N/m]). Without them a strand pulled back over the wound (a tightening
+  stitch loop) drew the thread out of the exit hole a capsule at a time, and algorithm
+  3's tightening pulled the stitch out of the tissue at 0.3 N,
 * feels the suture-tissue friction (4.5), f = -(F_s sgn(l_dot) + F_v l_dot), where
   ``l_dot`` [m/s] is the thread's sliding speed along the channel, shared equally by the
   capsules inside:
@@ -66,6 +71,10 @@ class TissueError(SutureError):
         self.reason = reason
 
 
+HOLE_RAMP = 1.0
+"""Time over which the holes' hold is taken up once the stitch is made [s]."""
+
+
 def channel_friction(l_dot: float, f_static: float, f_viscous: float) -> float:
     """Suture-tissue friction force along the channel (4.5) [N].
 
@@ -92,6 +101,8 @@ class Tissue:
         depth: channel depth below the surface at mid-span [m].
         f_static: static suture-tissue friction F_s [N] (4.5).
         f_viscous: viscous suture-tissue friction F_v [N*s/m] (4.5).
+        k_hole: stiffness with which each puncture hole holds the thread [N/m] (within
+            the explicit-spring stability bound of a 1 g capsule at 1 kHz, ~4000 N/m).
         bodies: the pad's static bodies (one per side of the wound).
         channel: M×3 polyline of the channel [m].
     """
@@ -105,6 +116,7 @@ class Tissue:
     f_viscous: float = 2.0
     k_lateral: float = 1000.0
     c_lateral: float = 0.2
+    k_hole: float = 1500.0
     capture: float = 3e-3
     bodies: list[int] = field(default_factory=list)
     channel: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
@@ -126,6 +138,7 @@ class Tissue:
     _snag_extra: float = 0.0
     _snag_steps: int = 0
     _sigma: float | None = None
+    _hole_gain: float = 0.0
     _dt: float | None = None
 
     @classmethod
@@ -153,7 +166,7 @@ class Tissue:
             size: pad length along entry->exit, width along the wound, thickness [m].
             wound_gap: width of the wound between the two halves [m].
             **kwargs: ``f_static`` [N], ``f_viscous`` [N*s/m],
-                ``k_lateral`` [N/m], ``c_lateral`` [N*s/m], ``capture`` [m].
+                ``k_lateral`` [N/m], ``c_lateral`` [N*s/m], ``k_hole`` [N/m], ``capture`` [m].
 
         Raises:
             TissueError: a zero normal, coincident entry/exit, or non-positive depth.
@@ -461,6 +474,42 @@ class Tissue:
         torque_sum = np.zeros((len(pos), 3))
         np.add.at(force_sum, idx, pull)
         np.add.at(torque_sum, idx, np.cross(at - pos[idx], pull))
+        # The puncture holes hold the thread like eyelets: the thread's point nearest each
+        # hole (among the capsules near its arc length there) is pulled onto it.
+        # (once the stitch is made: while the needle is in the tissue it leads the thread)
+        # (once the stitch is made: while the needle is in the tissue it leads the thread),
+        # taken up over HOLE_RAMP [s] so that the switch does not jerk the thread
+        holes = [(self.channel[0], sigma), (self.channel[-1], sigma + span)]
+        if not self.exited:
+            holes = []
+        else:
+            self._hole_gain = min(1.0, self._hole_gain + dt / HOLE_RAMP)
+        for hole, near in holes:
+            k0 = int(near / seg)
+            best, where, cap_i, at_t = np.inf, None, -1, 0.5
+            for i in range(max(0, k0 - 2), min(len(pos), k0 + 3)):
+                if np.isnan(pos[i, 0]):
+                    continue
+                a0 = pos[i] - h * axes[i]
+                tt = min(max(float((hole - a0) @ axes[i]) / seg, 0.0), 1.0)
+                q = a0 + seg * tt * axes[i]
+                d = float(np.linalg.norm(hole - q))
+                if d < best:
+                    best, where, cap_i, at_t = d, q, i, tt
+            if where is not None:
+                err_h = hole - where
+                # across the thread only, the thread's direction there blended with the
+                # neighbouring capsule's towards a joint: the thread slides through the hole
+                # freely (against the channel's friction alone), with no detent at the joints
+                other = cap_i + (1 if at_t > 0.5 else -1)
+                tangent_h = axes[cap_i].copy()
+                if 0 <= other < len(pos) and not np.isnan(axes[other, 0]):
+                    tangent_h += 2.0 * abs(at_t - 0.5) * axes[other]
+                    tangent_h /= np.linalg.norm(tangent_h)
+                err_h = err_h - tangent_h * float(err_h @ tangent_h)
+                f = self._hole_gain * self.k_hole * err_h
+                force_sum[cap_i] += f
+                torque_sum[cap_i] += np.cross(where - pos[cap_i], f)
         for row, i in enumerate(inside):
             anchor = self._anchors.get(i)
             if anchor is None:
@@ -493,6 +542,20 @@ class Tissue:
                 p.applyExternalTorque(
                     sut.bodies[i], -1, torque_sum[i].tolist(), p.WORLD_FRAME, physicsClientId=c
                 )
+        # a hole's capsule just outside the channel (the thread leaving it) gets its pull too
+        for j in np.flatnonzero(np.any(force_sum != 0.0, axis=1)):
+            i = int(j)
+            if i in tangent:
+                continue
+            v = np.asarray(p.getBaseVelocity(sut.bodies[i], physicsClientId=c)[0])
+            v_perp = v - axes[i] * float(v @ axes[i])
+            force = force_sum[i] - c_lat * v_perp
+            p.applyExternalForce(
+                sut.bodies[i], -1, force.tolist(), pos[i].tolist(), p.WORLD_FRAME, physicsClientId=c
+            )
+            p.applyExternalTorque(
+                sut.bodies[i], -1, torque_sum[i].tolist(), p.WORLD_FRAME, physicsClientId=c
+            )
 
 
 def _resample_polyline(path: FloatArray, count: int) -> FloatArray:
