@@ -388,3 +388,29 @@ def test_safety_limits_refuse_nonsense() -> None:
         SafetyLimits(4.0, max_stale_s=-1.0)
     assert SafetyLimits(4.0, margin=0.25).lock_tension_N == pytest.approx(3.0)
     assert SafetyLimits(None).lock_tension_N is None
+
+
+def test_the_tension_invariant_reads_every_robot_not_only_the_steps() -> None:
+    """A step that drives the stitcher must not overload the strand the grasper holds: the
+    suture's tension is one quantity, whichever robot's base sensor reads it."""
+    from suture_engine.runtime.monitor import Invariant, Monitor
+
+    q = np.array([0.1, 0.2, 0.0, 0.1])
+    obs = _obs({n: (q, np.zeros(6)) for n in ("endobot_1", "endobot_2")})
+    monitor = Monitor()
+    inv = Invariant(max_tension_N=3.0)
+    ok = {"endobot_1": 0.4, "endobot_2": 2.9}
+    assert monitor.check(inv, obs, "slide-off", ok, {}, robots=("endobot_1",)) is None
+    over = {"endobot_1": 0.4, "endobot_2": 5.0}
+    found = monitor.check(inv, obs, "slide-off", over, {}, robots=("endobot_1",))
+    assert found is not None
+    assert (found.robot, found.invariant, found.value, found.bound) == (
+        "endobot_2",
+        "tension",
+        5.0,
+        3.0,
+    )
+    # other invariants still concern the step's own robots only: a force bound on the
+    # stitcher is not broken by the grasper's reading
+    force = Invariant(max_force_N=3.0)
+    assert monitor.check(force, obs, "slide-off", over, {}, robots=("endobot_1",)) is None

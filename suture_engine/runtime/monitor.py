@@ -5,7 +5,8 @@ leaves, the interpreter raises an unpredictable event (thesis 4.6.1.2). The
 invariants checked here are the ones a procedure declares:
 
 - a tension bound: the tension estimated from the base force/torque sensor
-  stays below ``max_tension_N`` [N];
+  stays below ``max_tension_N`` [N] on every robot, not only the ones the step
+  drives (the suture is one thread);
 - a force bound: the magnitude of the tared base force below ``max_force_N`` [N];
 - a workspace box (4.45): joint positions inside ``[q_min, q_max]``
   [rad, rad, rad, m], and the tool tip (world frame) inside
@@ -404,6 +405,22 @@ class Monitor:
             return None
         names = robots or tuple(obs.robots)
         found: Violation | None = None
+        if invariant.max_tension_N is not None:
+            # the suture's tension is one quantity, whichever robot's sensor reads it: a step
+            # that drives the stitcher still must not overload the strand the grasper holds
+            for name in sorted(tension, key=lambda n: (n not in names, n)):
+                if tension[name] > invariant.max_tension_N:
+                    found = Violation(
+                        obs.t,
+                        obs.tick,
+                        state,
+                        name,
+                        "tension",
+                        tension[name],
+                        invariant.max_tension_N,
+                    )
+                    self.violations.append(found)
+                    return found
         for name in names:
             found = self._check_robot(invariant, obs, state, name, tension, qp_failures)
             if found is None and invariant.workspace_min is not None:
