@@ -235,3 +235,22 @@ def test_a_knot_whose_thread_left_the_tissue_is_flagged() -> None:
     assert entry["type"] == "square" and entry["through_tissue"] is False
     entries = knot_entries(_thread(SITES), SURFACE, NORMAL, 0.5 * MM)
     assert [e["through_tissue"] for e in entries] == [True, True, True]
+
+
+def test_a_taut_stitch_in_a_shallow_channel_is_a_bite_a_half_pulled_one_is_not() -> None:
+    """A stitched start's channel is 0.5 mm deep; pulled taut, the thread in it runs 0.1-0.2
+    mm under the surface (a thread resting on the pad lies a contact radius, 0.9 mm, above
+    it). It still binds the stitch. A thread pulled back out of the exit hole, under the
+    surface only on the entry side, binds none."""
+    taut = np.vstack(
+        [[[0.0, -20 * MM, 0.9 * MM]], _bite(0.0, 0.15 * MM, n=3), [[0.0, 20 * MM, 0.9 * MM]]]
+    )
+    wound = ((-15 * MM, 0.0, 0.0), (15 * MM, 0.0, 0.0))
+    assert len(find_bites(taut, SURFACE, NORMAL, wound=wound)) == 1
+    half = (
+        np.array(
+            [[0.6, -5.2, 0.3], [-0.1, -2.3, -0.12], [0.2, 0.7, 0.2], [0.5, -2.3, 0.6], [3, -8, 2]]
+        )
+        * MM
+    )  # measured: algorithm 3, the thread turned back 3 mm short of the exit hole
+    assert find_bites(half, SURFACE, NORMAL, wound=wound) == []
