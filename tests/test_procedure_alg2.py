@@ -91,10 +91,23 @@ def test_slide_to_tip_straddles_the_grasper_tip(mirror: bool, tail_mm: int) -> N
         u1 = (o1 - point) / np.linalg.norm(o1 - point)
         clearance = _segment_distance(point + JAW_REGION * u1, o1, tip2 + JAW_REGION * up, o2)
         assert clearance > 2.0 * SHAFT_RADIUS + 1e-3
-    # slide, move under, pass the needle, retract the hook, back the grasper out
+    # slide, move under, pass the needle, retract the hook, draw the stitcher's end through
+    # the loop while it still rests on the jaws, then back the grasper out and tighten
     assert proc.states["slide-to-tip"].on["done"] == "under"
     assert proc.states["under"].on["done"] == "pass-needle"
-    assert proc.states["retract-hook"].on["done"] == "pull-through"
+    assert proc.states["retract-hook"].on["done"] == "cinch"
+    assert proc.states["cinch"].on["done"] == "pull-through"
+    assert proc.states["pull-through"].on["done"] == "tighten"
+    # the cinch and the tighten draw the stitcher away from the grasper, above the tissue
+    cinch = proc.states["cinch"].params
+    tighten = proc.states["tighten"].params
+    assert cinch.relative_to == tighten.relative_to == "stitcher"
+    drawn = below + np.asarray(cinch.target)
+    assert float(np.linalg.norm(np.asarray(cinch.target))) >= 25e-3
+    assert drawn[2] > 5e-3 and (drawn + np.asarray(tighten.target))[2] > 5e-3
+    away = (o1 - o2) / np.linalg.norm(o1 - o2)
+    assert np.asarray(cinch.target) @ away > 0.9 * np.linalg.norm(np.asarray(cinch.target))
+    assert np.asarray(tighten.target) @ away > 0.9 * np.linalg.norm(np.asarray(tighten.target))
     assert proc.states["over-hook"].params.direction == (
         "front-to-back" if mirror else "back-to-front"
     )
@@ -121,9 +134,10 @@ def test_stitch_approach_timeout_covers_its_move_from_the_start_pose() -> None:
 
 def test_tighten_and_slide_timeouts_cover_their_moves() -> None:
     proc: Any = load_procedure(ROOT / "procedures" / "knot-algorithm-2.yaml")
-    tighten = proc.states["tighten"]
-    d = float(np.linalg.norm(tighten.params.target))
-    assert tighten.timeout >= _min_jerk_duration(d, tighten.params.speed) + 1.0
+    for name in ("cinch", "tighten"):
+        state = proc.states[name]
+        d = float(np.linalg.norm(state.params.target))
+        assert state.timeout >= _min_jerk_duration(d, state.params.speed) + 1.0
     slide = proc.states["slide-to-tip"]
     # the slide starts where the take-up after the loop over the hook ends: a loop
     # radius off the stem, `height` up it, then moved by the take-up
