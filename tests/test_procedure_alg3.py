@@ -246,8 +246,8 @@ def test_algorithm_3_ties_a_simple_knot_on_pybullet(tmp_path: Path) -> None:
     """The stitched start, seed 1: the grasper bends (measured by its encoders, in the
     trace), the holder loops the strand around the bent arm, the bent jaws take the
     tail's end, the holder draws the loop off the arm over the closed jaws, and the
-    thread's true centerline then holds a trefoil (one throw, 4.4.3), with the true
-    tension under the procedure's 3 N limit."""
+    thread's true centerline then holds a trefoil (one throw, 4.4.3) that binds the stitch
+    (the thread still runs through the tissue), with the true tension under 3 N."""
     summary, trace = run_cli(
         tmp_path,
         str(PROC),
@@ -268,4 +268,6 @@ def test_algorithm_3_ties_a_simple_knot_on_pybullet(tmp_path: Path) -> None:
     assert min(b[1] for b in bends) == pytest.approx(-math.pi / 2, abs=math.radians(1.0))
     assert summary["outcome"] == "succeeded"
     assert summary["knot"]["type"] == "trefoil"
+    assert summary["knot"]["through_tissue"] is True
+    assert summary["metrics"]["stitches"]["count"] == 1
     assert summary["metrics"]["peak_true_tension_N"] < 3.0
