@@ -270,3 +270,16 @@ def test_algorithm_2_ties_a_simple_knot_on_the_surgical_backend(tmp_path: Path) 
     knot = summary["knot"][0] if isinstance(summary["knot"], list) else summary["knot"]
     assert knot["type"] == "trefoil"
     assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
+
+
+def test_the_second_throw_keeps_the_tail_and_the_stitched_start_skips_the_stitch() -> None:
+    proc: Any = load_procedure(
+        ROOT / "procedures" / "square-knot.yaml", params={"algorithm": 2, "stitch": False}
+    )
+    first = proc.states["simple-knot"].use.states
+    second = proc.states["mirrored-knot"].use.states
+    # `stitch` reaches the first throw (the stitched start has the stitch made)
+    assert not first["stitch"].enabled and not second["stitch"].enabled
+    # the grasper holds the tail from the first throw on: no second grab and lift
+    assert first["grab-tail"].enabled and first["lift-tail"].enabled
+    assert not second["grab-tail"].enabled and not second["lift-tail"].enabled
