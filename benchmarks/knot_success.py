@@ -20,15 +20,19 @@ reported as perturbed.
 
 Success = the run's outcome is ``succeeded`` AND the ground-truth classifier (the
 ``knot`` entry of ``summary.json``, from the simulated thread, never the procedure's
-belief) says ``square``. The rate is printed with its 95 % Wilson score interval
-(``suture_engine.report.sweep.wilson_interval``); every run's row goes to
-``OUT/results.csv``.
+belief) says ``square`` AND the knot binds the stitch (``through_tissue``).
+
+``--single`` measures one throw instead: ``knot-algorithm-N.yaml --set stitch=false`` on
+the stitched start (``pybullet-surgical-stitched`` unless ``--backend`` says otherwise);
+success is then ``succeeded``, a ``trefoil`` and ``through_tissue``. The rate is printed
+with its 95 % Wilson score interval (``suture_engine.report.sweep.wilson_interval``);
+every run's row goes to ``OUT/results.csv``.
 
 Usage::
 
     python benchmarks/knot_success.py [--seeds 20] [--algorithms 1,2,3] [--max-time 300]
         [--workers 2] [--out runs/knot-success] [--backend pybullet-surgical]
-        [--base-seed 0] [--no-perturb] [--bending-stiffness EI]
+        [--base-seed 0] [--no-perturb] [--bending-stiffness EI] [--single]
 """
 
 from __future__ import annotations
@@ -53,6 +57,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 PROCEDURE = ROOT / "procedures" / "square-knot.yaml"
+SINGLE = str(ROOT / "procedures" / "knot-algorithm-%d.yaml")
+"""One throw of algorithm N (``--single``)."""
 ROBOTS = ("endobot_1", "endobot_2")
 
 BASE_SIGMA = 1e-3
@@ -155,6 +161,7 @@ class Job(NamedTuple):
     backend: str
     out_dir: str
     max_time_s: float
+    single: bool = False
 
 
 class Row(NamedTuple):
@@ -213,9 +220,19 @@ def knot_type(knot: Any) -> str:
     return ""
 
 
-def is_success(outcome: str, knot: str) -> bool:
-    """Success = outcome ``succeeded`` and the ground-truth knot ``square``."""
-    return outcome == "succeeded" and knot == "square"
+def binds_stitch(knot: Any) -> bool:
+    """Whether every knot entry's thread still runs through the tissue (``through_tissue``)."""
+    if isinstance(knot, Mapping):
+        return knot.get("through_tissue") is True
+    if isinstance(knot, list) and knot:
+        return all(binds_stitch(k) for k in knot)
+    return False
+
+
+def is_success(outcome: str, knot: str, bound: bool = True, *, single: bool = False) -> bool:
+    """Success = outcome ``succeeded``, the ground-truth knot ``square`` (``trefoil`` for a
+    single throw) and the knot binding the stitch (``bound``)."""
+    return outcome == "succeeded" and knot == ("trefoil" if single else "square") and bound
 
 
 def run_one(job: Job) -> Row:
@@ -231,10 +248,10 @@ def run_one(job: Job) -> Row:
     try:
         with contextlib.redirect_stdout(io.StringIO()):
             result = run_procedure(
-                str(PROCEDURE),
+                str(SINGLE % job.algorithm if job.single else PROCEDURE),
                 backend=job.backend,
                 seed=job.seed,
-                sets=[f"algorithm={job.algorithm}"],
+                sets=["stitch=false"] if job.single else [f"algorithm={job.algorithm}"],
                 out=job.out_dir,
                 max_time_s=job.max_time_s,
                 backend_options=job.options or None,
@@ -246,8 +263,9 @@ def run_one(job: Job) -> Row:
                    *common, msg)  # fmt: skip
     s = result.summary
     kt = knot_type(s.knot)
+    ok = is_success(s.outcome, kt, binds_stitch(s.knot), single=job.single)
     return Row(
-        job.algorithm, job.run, job.seed, s.outcome, kt, is_success(s.outcome, kt),
+        job.algorithm, job.run, job.seed, s.outcome, kt, ok,
         float(s.max_tension_N), float(s.sim_time_s), time.perf_counter() - start, *common, "",
     )  # fmt: skip
 
@@ -302,13 +320,16 @@ def main(argv: Sequence[str]) -> int:
     ap.add_argument("--max-time", type=float, default=300.0, help="simulated s per run")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, default=ROOT / "runs" / "knot-success")
-    ap.add_argument("--backend", default="pybullet-surgical")
+    ap.add_argument("--backend", default=None, help="default pybullet-surgical(-stitched)")
+    ap.add_argument("--single", action="store_true", help="one throw, stitched start")
     ap.add_argument("--base-seed", type=int, default=0)
     ap.add_argument("--no-perturb", action="store_true")
     ap.add_argument(
         "--bending-stiffness", type=float, default=None, help="nominal thread EI [N*m^2]"
     )
     args = ap.parse_args(list(argv))
+    if args.backend is None:
+        args.backend = "pybullet-surgical-stitched" if args.single else "pybullet-surgical"
     try:
         algorithms = [int(a) for a in args.algorithms.split(",") if a.strip()]
     except ValueError:
@@ -322,6 +343,7 @@ def main(argv: Sequence[str]) -> int:
         algorithms, args.seeds, base_seed=args.base_seed, backend=args.backend, out=args.out,
         max_time_s=args.max_time, perturb=perturb, accepted=accepted,
     )  # fmt: skip
+    jobs = [j._replace(single=args.single) for j in jobs]
     nominal_ei = args.bending_stiffness
     if nominal_ei is not None:
         if "suture_bending_stiffness" not in accepted:
@@ -331,8 +353,9 @@ def main(argv: Sequence[str]) -> int:
         jobs = [
             j._replace(options={**j.options, "suture_bending_stiffness": nominal_ei}) for j in jobs
         ]
+    what = "knot-algorithm-N.yaml (one throw)" if args.single else "square-knot.yaml"
     print(
-        f"square-knot.yaml on {args.backend}: {args.seeds} run(s) per algorithm "
+        f"{what} on {args.backend}: {args.seeds} run(s) per algorithm "
         f"{algorithms}, max {args.max_time:g} s simulated each, {args.workers} worker(s)"
     )
     if perturb:

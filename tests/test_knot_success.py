@@ -84,6 +84,14 @@ def test_perturbations_go_only_where_the_backend_takes_them() -> None:
 
 def test_success_needs_the_outcome_and_the_ground_truth_square() -> None:
     assert ks.is_success("succeeded", "square")
+    assert not ks.is_success("succeeded", "square", bound=False)  # binds no stitch
+    assert ks.is_success("succeeded", "trefoil", single=True)
+    assert not ks.is_success("succeeded", "square", single=True)
+    assert not ks.is_success("succeeded", "trefoil", bound=False, single=True)
+    assert ks.binds_stitch({"type": "trefoil", "through_tissue": True})
+    assert not ks.binds_stitch({"type": "trefoil", "through_tissue": False})
+    assert not ks.binds_stitch({"type": "trefoil"}) and not ks.binds_stitch(None)
+    assert not ks.binds_stitch([{"through_tissue": True}, {"through_tissue": False}])
     assert not ks.is_success("succeeded", "granny")
     assert not ks.is_success("succeeded", "")
     assert not ks.is_success("failed", "square")
