@@ -104,10 +104,14 @@ def draw_perturbation(rng: np.random.Generator, robots: Sequence[str] = ROBOTS) 
 def accepted_options(backend: str) -> set[str]:
     """Keyword options the constructors of a built-in backend's class chain take."""
     import importlib
+    from importlib.metadata import entry_points
 
     from backends import registry
 
     target = getattr(registry, "_BUILTIN", {}).get(backend)
+    if target is None:  # an entry-point backend (pybullet-surgical-stitched is one)
+        eps = {ep.name: ep.value for ep in entry_points(group=registry.ENTRY_POINT_GROUP)}
+        target = eps.get(backend)
     if target is None:
         return set()
     module, _, attr = target.partition(":")

@@ -149,3 +149,7 @@ def test_accepted_options_read_the_backend_constructors() -> None:
     assert {"gui", "dt", "tail"} <= names  # PyBulletBackend's own keywords, via the MRO
     assert "kwargs" not in names and "self" not in names
     assert ks.accepted_options("no-such-backend") == set()
+    # an entry-point backend whose own constructor takes only **kwargs: its parents' options
+    # (the stitched start's perturbations were silently dropped before)
+    stitched = ks.accepted_options("pybullet-surgical-stitched")
+    assert {"base_error", "friction_scale", "suture_stiffness_scale"} <= stitched
