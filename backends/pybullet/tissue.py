@@ -475,14 +475,12 @@ class Tissue:
         np.add.at(force_sum, idx, pull)
         np.add.at(torque_sum, idx, np.cross(at - pos[idx], pull))
         # The puncture holes hold the thread like eyelets: the thread's point nearest each
-        # hole (among the capsules near its arc length there) is pulled onto it.
-        # (once the stitch is made: while the needle is in the tissue it leads the thread)
-        # (once the stitch is made: while the needle is in the tissue it leads the thread),
-        # taken up over HOLE_RAMP [s] so that the switch does not jerk the thread
-        holes = [(self.channel[0], sigma), (self.channel[-1], sigma + span)]
-        if not self.exited:
-            holes = []
-        else:
+        # hole (among the capsules near its arc length there) is pulled onto it. Only once
+        # the stitch is made (while the needle is in the tissue it leads the thread), and
+        # taken up over HOLE_RAMP [s] so that the switch does not jerk the thread.
+        holes = []
+        if self.exited:
+            holes = [(self.channel[0], sigma), (self.channel[-1], sigma + span)]
             self._hole_gain = min(1.0, self._hole_gain + dt / HOLE_RAMP)
         for hole, near in holes:
             k0 = int(near / seg)
