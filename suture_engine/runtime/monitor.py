@@ -466,10 +466,7 @@ class Monitor:
         robot = obs.robots.get(name)
         if robot is None:
             return None
-        if inv.max_tension_N is not None and tension.get(name, 0.0) > inv.max_tension_N:
-            return Violation(
-                obs.t, obs.tick, state, name, "tension", tension[name], inv.max_tension_N
-            )
+        # (max_tension is checked over every robot in :meth:`check`, before this)
         if inv.max_force_N is not None and tension.get(name, 0.0) > inv.max_force_N:
             return Violation(obs.t, obs.tick, state, name, "force", tension[name], inv.max_force_N)
         q = robot.q
