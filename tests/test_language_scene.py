@@ -7,6 +7,7 @@ from pydantic import ValidationError
 
 from suture_engine.language.scene import (
     GRAVITY,
+    GRIP_FRACTION,
     KNOT_PULL_STRENGTH_KG,
     SUTURE_DIAMETER_MM,
     TISSUE_PULLOUT_N,
@@ -74,8 +75,25 @@ def test_usp_zero_written_as_a_number() -> None:
         {"robots": {"a": {"tool": "stitcher", "joint_limits": {"yaw": ["10 deg", "-10 deg"]}},
                     "b": {"tool": "grasper"}}},
         {"colour": "blue"},
+        # grip force: graspers only, positive, at most the tension limit (7.06 N here)
+        {"robots": {"a": {"tool": "stitcher", "grip_force": "3 N"}, "b": {"tool": "grasper"}}},
+        {"robots": {"a": {"tool": "stitcher"}, "b": {"tool": "grasper", "grip_force": 0}}},
+        {"robots": {"a": {"tool": "stitcher"}, "b": {"tool": "grasper", "grip_force": "8 N"}}},
+        {"robots": {"a": {"tool": "stitcher"}, "b": {"tool": "grasper", "grip_force": "3 mm"}}},
     ],
 )  # fmt: skip
 def test_bad_scenes_are_rejected(changes: dict[str, object]) -> None:
     with pytest.raises(ValidationError):
         Scene.model_validate(_scene(**changes))
+
+
+def test_grip_force_defaults_to_a_fraction_of_the_tension_limit() -> None:
+    scene = Scene.model_validate(_scene())
+    assert scene.tension_limit == pytest.approx(0.5 * 1.44 * GRAVITY)
+    assert scene.grip_force("endobot_2") == pytest.approx(GRIP_FRACTION * scene.tension_limit)
+    assert GRIP_FRACTION == 0.9
+    robots = {
+        "endobot_1": {"tool": "stitcher"},
+        "endobot_2": {"tool": "grasper", "grip_force": "5 N"},
+    }
+    assert Scene.model_validate(_scene(robots=robots)).grip_force("endobot_2") == 5.0

@@ -92,6 +92,31 @@ def test_model_scene_without_stitcher_starts_stitched_through_the_tissue() -> No
         scene.close()
 
 
+def test_model_scene_graspers_grip_the_thread_with_the_scene_grip_force() -> None:
+    """A scene's graspers let the thread slide above its grip force (by default 0.9 times
+    the tension limit, 6.35 N on the bench); a plain dict's hold it at any force."""
+    data = yaml.safe_load((ROOT / "procedures/scenes/bench-bent-tip.yaml").read_text())
+    for own, expected in ((None, 0.9 * 0.75 * 0.96 * 9.80665), (2.5, 2.5)):
+        if own is not None:
+            data["robots"]["endobot_2"]["grip_force"] = own
+        model = SceneModel.model_validate(data)
+        scene = build_scene(model, start="stitched")
+        try:
+            assert model.tension_limit == pytest.approx(7.06, abs=0.005)
+            holder, bent = scene.tools["endobot_1"], scene.tools["endobot_2"]
+            assert isinstance(holder, Grasper) and isinstance(bent, BentTipGrasper)
+            assert holder.grip_limit == pytest.approx(0.9 * model.tension_limit)
+            assert bent.grip_limit == pytest.approx(expected)
+        finally:
+            scene.close()
+    plain = build_scene({"tissue": {}})
+    try:
+        assert all(t.grip_limit == float("inf") for t in plain.tools.values())
+        assert plain.tools
+    finally:
+        plain.close()
+
+
 def test_same_seed_same_run() -> None:
     def run() -> np.ndarray:
         scene = build_scene({"suture": {"knot": "overhand", "segments": 60}}, seed=7)

@@ -25,6 +25,7 @@ target tension, then hold.
 from __future__ import annotations
 
 import copy
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
@@ -219,7 +220,9 @@ def build_scene(
             (:class:`~backends.pybullet.suture.SutureParams`).
 
     Returns:
-        The scene; graspers hold nothing yet and sit at the thread's ends.
+        The scene; graspers hold nothing yet and sit at the thread's ends. A scene
+        model's graspers let the thread slide through their jaws above the model's grip
+        force (``Scene.grip_force``); a plain dict's hold it at any force.
 
     Raises:
         SceneError: an unknown tool or knot name, or a malformed vector.
@@ -287,6 +290,13 @@ def build_scene(
     except SutureError:
         p.disconnect(physicsClientId=client)
         raise
+
+
+def _grip_force(model: Any, robot: str) -> float:
+    """The grip force of ``robot``'s grasper [N] from the scene model (inf if the model
+    gives none)."""
+    get = getattr(model, "grip_force", None)
+    return float(get(robot)) if callable(get) else math.inf
 
 
 def _quaternion(rpy: Any) -> tuple[float, float, float, float]:
@@ -605,6 +615,8 @@ def _build_model(
                 p.setCollisionFilterPair(robot.body_id, body, link, -1, 0, physicsClientId=client)
     scene = Scene(client=client, seed=seed, suture=suture, tissue=tissue, robots=robots, hold=hold)
     scene.rng = np.random.default_rng(seed)
+    # the jaws let the thread slide through above the scene's grip force (under its limit)
+    grip = {name: _grip_force(model, name) for name in model.robots}
     for name, spec in sorted(model.robots.items()):
         robot = robots[name]
         tip, orn = robot.true_tool_pose()
@@ -621,11 +633,22 @@ def _build_model(
                 place_needle=start != "stitched",
             )
         elif spec.tool == "bent-tip-grasper":
-            tool = BentTipGrasper.create(client, name, pos, quat, suture=suture, hook=False)
+            tool = BentTipGrasper.create(
+                client, name, pos, quat, suture=suture, hook=False, grip_limit=grip[name]
+            )
         else:
             hook = spec.tool == "hook-grasper"
             # the hook grasper's jaws are solid (a loop rests on them, algorithm 2)
-            tool = Grasper.create(client, name, pos, quat, suture=suture, hook=hook, solid=hook)
+            tool = Grasper.create(
+                client,
+                name,
+                pos,
+                quat,
+                suture=suture,
+                hook=hook,
+                solid=hook,
+                grip_limit=grip[name],
+            )
             if name == holder:
                 tool.grip(len(suture.bodies) - 1)
         tool.mount(robot.body_id, robot.tool_link)

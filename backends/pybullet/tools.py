@@ -9,13 +9,16 @@ lags instead of tearing the simulation apart.
 
 * :class:`Grasper` (4.1): pneumatic jaws, binary open/close with a travel time [s].
   Closing on the thread creates a fixed constraint to the nearest thread capsule within
-  ``reach`` [m] of the jaw centre; opening removes it. It carries the flexible hook
+  ``reach`` [m] of the jaw centre; opening removes it. The jaws hold the thread with at
+  most ``grip_limit`` [N]: pulled harder, it slides through them (:class:`GripSlip`).
+  It carries the flexible hook
   (Fig. 4.6), a curved body that extends over the jaw hinge or retracts, and catches the
   thread by contact.
 * :class:`BentTipGrasper`: a grasper whose jaw sits behind a universal joint (two bend
   angles [rad]), for knot-tying algorithm 3.
 * :class:`Stitcher` (4.1, Fig. 4.3): EndoStitch-like, two jaws with the needle locked in one;
-  :meth:`Stitcher.pass_needle` hands it to the other jaw after the travel time.
+  :meth:`Stitcher.pass_needle` hands it to the other jaw after the travel time. The needle
+  lock has no grip limit (see :class:`Stitcher`).
 
 Call :meth:`Tool.step` once per physics step (it advances jaw travel and the hook).
 """
@@ -25,7 +28,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -40,6 +43,7 @@ __all__ = [
     "SHAFT_RADIUS",
     "BentTipGrasper",
     "Grasper",
+    "GripSlip",
     "JawState",
     "Stitcher",
     "Tool",
@@ -54,6 +58,10 @@ SHAFT_RADIUS = 1.5e-3
 """Radius of a grasper's instrument shaft [m]."""
 HOOK_MOUTH = 3.5e-3
 """Distance from the hook's shank to its barb, along the tip's x [m]."""
+_CAP_RISE = 1.02
+"""Largest rise of a grasp rows' cap from one step to the next [-]."""
+_SATURATED = 0.99
+"""A grasp row transmitting this fraction of its cap is taken as held at the cap [-]."""
 
 
 class ToolError(SutureError):
@@ -72,6 +80,26 @@ class ToolError(SutureError):
         self.tool = tool
         self.action = action
         self.reason = reason
+
+
+class GripSlip(NamedTuple):
+    """The thread slid through a grasper's jaws (pulled harder than ``grip_limit``).
+
+    Attributes:
+        time: the tool's clock when the slide was seen (its steps times ``dt``) [s].
+        from_segment: thread capsule the jaws held before.
+        to_segment: capsule they hold now (the same one if it is still between the
+            jaws; -1 if the thread slid out of them).
+        distance: how far the held capsule moved along its axis since the jaws last
+            gripped it [m].
+        force: force the jaws transmitted in the step before [N].
+    """
+
+    time: float
+    from_segment: int
+    to_segment: int
+    distance: float
+    force: float
 
 
 class JawState(Enum):
@@ -220,8 +248,13 @@ class Tool:
                 b, -1, [0.0, 0.0, mass * 9.81], pos, p.WORLD_FRAME, physicsClientId=c
             )
 
-    def _attach(self, body: int, other: int) -> int:
-        """A fixed constraint from ``body`` to ``other`` at their current relative pose."""
+    def _attach(
+        self, body: int, other: int, max_force: float | None = None, at: Vec3 | None = None
+    ) -> int:
+        """A fixed constraint from ``body`` to ``other`` at their current relative pose,
+        applying at most ``max_force`` [N] per row (None: ``drive_force``); with ``at``,
+        it holds ``other``'s origin at that point of ``body``'s frame [m] instead of
+        where it lies."""
         import pybullet as p
 
         c = self.client
@@ -229,6 +262,8 @@ class Tool:
         pb, ob = p.getBasePositionAndOrientation(other, physicsClientId=c)
         ia, iao = p.invertTransform(pa, oa)
         rel_p, rel_o = p.multiplyTransforms(ia, iao, pb, ob)
+        if at is not None:
+            rel_p = at
         cons = p.createConstraint(
             body,
             -1,
@@ -241,7 +276,8 @@ class Tool:
             parentFrameOrientation=rel_o,
             physicsClientId=c,
         )
-        p.changeConstraint(cons, maxForce=self.drive_force, physicsClientId=c)
+        limit = self.drive_force if max_force is None else max_force
+        p.changeConstraint(cons, maxForce=limit, physicsClientId=c)
         return cons
 
 
@@ -270,6 +306,33 @@ class Grasper(Tool):
             jaws; otherwise the jaws never touch the thread.
         spare: capsules on each side of the held one that the solid jaws let through.
         jaw_friction: friction coefficient of the solid jaws against the thread [-].
+        grip_limit: largest pull along the thread the closed jaws hold it with [N] (inf:
+            any, the grasp of the scripted rigs that pull to a set tension). Pulled
+            harder, the thread slides through them: the grasp passes at most this pull
+            along the held capsule's axis (:meth:`grip_pull`), and once the capsule has
+            moved ``slip_step`` along it they grip it again where it now is, on the
+            jaws' line (or, when its neighbour has come between the jaws, that capsule;
+            when the thread's end has left them, nothing). Each re-grip is a
+            :class:`GripSlip` in ``slips``. A push across the thread (the jaws pressing
+            it into the tissue, 5.9 N in algorithm 2, seed 3, with 0.55 N of tension)
+            is held at any force, as real jaws do. The capsule the needle is swaged to
+            is the exception: jaws on it hold the needle, as a needle holder does, with
+            ``drive_force`` (the needle cannot slide through them; a thread sliding
+            towards the needle stops there). PyBullet caps each of the constraint's
+            world-axis rows at one force (``maxForce``); the cap stays ``drive_force``,
+            as without a limit, until the pull passes half the limit, and is then
+            ``grip_limit * max|f_i| / pull`` for the last step's force ``f``, so that
+            rows held at the cap scale the force down to a pull of the limit (lowered at
+            once, raised by at most 2 % a step). Measured (tests/test_tools.py, 3 N
+            limit, 20 mm drawn through at 20 mm/s): at the limit along a world axis;
+            up to 4 % over along a diagonal and 9 % (99th percentile 6 %) along a skew
+            line, in the steps after a re-grip turns the force. The limit bounds the
+            pull through the grasp only: thread wrapped round the jaws, the hook or the
+            shaft is also held by contact friction.
+        slip_step: how far the held capsule moves in the jaws, while they transmit
+            ``grip_limit``, before they grip it anew [m]. Below the limit it sits off its
+            grip by the solver's compliance only (about 0.05 mm/N) and is never re-gripped.
+        slips: every slide of the thread through the jaws, in order.
     """
 
     travel_time: float = 0.1
@@ -280,6 +343,9 @@ class Grasper(Tool):
     solid: bool = False
     spare: int = 2
     jaw_friction: float = 0.1
+    grip_limit: float = math.inf
+    slip_step: float = 0.25e-3
+    slips: list[GripSlip] = field(default_factory=list)
     state: JawState = JawState.OPEN
     suture: Suture | None = None
     held_segment: int = -1
@@ -294,6 +360,11 @@ class Grasper(Tool):
     _hook_drive: int = -1
     _held: list[int] = field(default_factory=list)
     _solid_for: int = -1
+    _anchor: FloatArray = field(default_factory=lambda: np.zeros(3))
+    _gripped_at: FloatArray = field(default_factory=lambda: np.zeros(3))
+    _lag: float | None = None
+    _row_cap: float = math.inf
+    _steps: int = 0
 
     @classmethod
     def create(
@@ -320,7 +391,7 @@ class Grasper(Tool):
                 collides with (to wrap the thread around it, as in an instrument tie);
                 0 for none.
             **kwargs: any of ``travel_time`` [s], ``reach`` [m], ``hook_travel_time`` [s],
-                ``hook_reach`` [m], ``drive_force`` [N].
+                ``hook_reach`` [m], ``drive_force`` [N], ``grip_limit`` [N].
         """
         self = cls(client=client, name=name, suture=suture, **kwargs)  # type: ignore[arg-type]
         self._make_body((1.5e-3, 1.5e-3, 4e-3), 0.02, [0.7, 0.7, 0.7, 1.0])
@@ -402,10 +473,59 @@ class Grasper(Tool):
         if self.suture is None or not 0 <= segment < len(self.suture.bodies):
             raise ToolError(self.name, "grip the thread", f"no thread capsule {segment}")
         if self._grasp < 0:
-            self._grasp = self._attach(self.body, self.suture.bodies[segment])
-            self.held_segment = segment
+            self._grip_capsule(segment)
         self.state = JawState.CLOSED
         self._timer = 0.0
+
+    def _grip_capsule(
+        self, segment: int, slide: FloatArray | None = None, lag: float = 0.0
+    ) -> None:
+        """Hold thread capsule ``segment`` where it lies, with at most ``grip_limit``.
+
+        A re-grip after a slide (``slide``: its direction in the jaw frame) holds the
+        capsule with the jaw centre on its axis, where the jaws pinch it, and ``lag``
+        [m] short of where it lies along that axis, so that the constraint pulls on at
+        once as the one it replaces did."""
+        assert self.suture is not None
+        capsule = self.suture.bodies[segment]
+        if not self._limited(segment):
+            self._grasp = self._attach(self.body, capsule)
+            self.held_segment = segment
+            return
+        centre, axis = self._in_jaws(capsule)
+        anchor = centre
+        if slide is None:  # a fresh grip, as an unlimited one (a re-grip keeps the cap)
+            self._row_cap = self.drive_force
+        else:
+            along = float(np.dot(centre, axis))
+            back = math.copysign(lag, float(np.dot(slide, axis)))
+            anchor = (along - back) * axis
+        at = (float(anchor[0]), float(anchor[1]), float(anchor[2]))
+        self._grasp = self._attach(self.body, capsule, self._row_cap, at)
+        self._anchor = anchor
+        self._gripped_at = centre
+        self._lag = None
+        self.held_segment = segment
+
+    def _limited(self, segment: int) -> bool:
+        """Whether the jaws' grip on capsule ``segment`` is limited: not with an infinite
+        ``grip_limit``, and not on the capsule the needle is swaged to, which the jaws
+        hold by the needle (a needle holder's grip; the needle cannot slide through)."""
+        if math.isinf(self.grip_limit) or self.suture is None:
+            return False
+        return not (self.suture.needle_body >= 0 and segment == len(self.suture.bodies) - 1)
+
+    def _in_jaws(self, body: int) -> tuple[FloatArray, FloatArray]:
+        """Centre [m] and axis [-] of thread capsule ``body`` in the jaw frame."""
+        import pybullet as p
+
+        c = self.client
+        pa, oa = p.getBasePositionAndOrientation(self.body, physicsClientId=c)
+        pb, ob = p.getBasePositionAndOrientation(body, physicsClientId=c)
+        ia, iao = p.invertTransform(pa, oa)
+        rel, orn = p.multiplyTransforms(ia, iao, pb, ob)
+        axis = np.asarray(p.getMatrixFromQuaternion(orn), dtype=float)[2::3]
+        return np.asarray(rel, dtype=float), axis
 
     def slip(self) -> bool:
         """The held capsule slips out of the closed jaws (a fault): they hold nothing.
@@ -430,6 +550,90 @@ class Grasper(Tool):
             return 0.0
         f = p.getConstraintState(self._grasp, physicsClientId=self.client)
         return float(np.linalg.norm(f[:3]))
+
+    def grip_pull(self) -> float:
+        """Force the jaws transmit to the held capsule along its axis [N] (0 if none):
+        the pull along the thread that ``grip_limit`` bounds (:meth:`grip_force` also
+        counts pushes across the thread, which the jaws hold at any force)."""
+        import pybullet as p
+
+        if self._grasp < 0 or self.suture is None:
+            return 0.0
+        c = self.client
+        f = np.asarray(p.getConstraintState(self._grasp, physicsClientId=c)[:3], dtype=float)
+        _, orn = p.getBasePositionAndOrientation(
+            self.suture.bodies[self.held_segment], physicsClientId=c
+        )
+        along = np.asarray(p.getMatrixFromQuaternion(orn), dtype=float)[2::3]
+        return abs(float(np.dot(f, along)))
+
+    def _limit_grip(self) -> None:
+        """Keep the grasp's pull along the thread under ``grip_limit`` and let the thread
+        slide through the jaws once it has moved ``slip_step`` in them (see
+        ``grip_limit``)."""
+        import pybullet as p
+
+        assert self.suture is not None
+        c = self.client
+        f = np.asarray(p.getConstraintState(self._grasp, physicsClientId=c)[:3], dtype=float)
+        held = self.held_segment
+        at, axis = self._in_jaws(self.suture.bodies[held])
+        _, jaw = p.getBasePositionAndOrientation(self.body, physicsClientId=c)
+        along = np.asarray(p.getMatrixFromQuaternion(jaw), dtype=float).reshape(3, 3) @ axis
+        pull = abs(float(np.dot(f, along)))
+        rows = float(np.max(np.abs(f)))
+        # held at the cap in the last step: the jaws' friction gave way
+        saturated = rows >= _SATURATED * self._row_cap
+        cap = self.drive_force
+        if pull > 0.5 * self.grip_limit:
+            # rows at this cap scale the force down until its pull is the limit
+            cap = min(cap, self.grip_limit * rows / pull)
+        # down at once, up slowly: a step's force below the cap may point elsewhere
+        cap = min(cap, self._row_cap * _CAP_RISE)
+        if cap != self._row_cap:
+            p.changeConstraint(self._grasp, maxForce=cap, physicsClientId=c)
+            self._row_cap = cap
+        off = at - self._anchor
+        moved = abs(float(np.dot(off, axis)))
+        if saturated and self._lag is None:
+            # how far off its grip the capsule sits once held at the cap: a re-grip keeps
+            # it (the force halved for a few steps otherwise, a stick-slip)
+            self._lag = min(moved, self.slip_step / 2)
+        # below the cap the capsule only sits off its grip by the solver's compliance
+        # (about 0.05 mm/N), which a re-grip would turn into a creep
+        if not saturated or moved <= self.slip_step:
+            return
+        slid = abs(float(np.dot(at - self._gripped_at, axis)))
+        to = self._between_jaws(held)
+        p.removeConstraint(self._grasp, physicsClientId=c)
+        self._grasp = -1
+        self.held_segment = -1
+        if to >= 0:
+            self._grip_capsule(to, off, self._lag or 0.0)
+        self.slips.append(GripSlip(self._steps * self.dt, held, to, slid, pull))
+
+    def _between_jaws(self, held: int) -> int:
+        """The capsule between the jaws now: the held one, or its neighbour once the jaw
+        centre has passed the held one's end; -1 once it has passed the thread's end by
+        more than ``reach`` (the thread has slid out of the jaws)."""
+        assert self.suture is not None
+        x = np.asarray(self.pose()[0])
+        pts = self.suture.centerline()
+        a, b = pts[held], pts[held + 1]
+        u = b - a
+        t = float(np.dot(x - a, u) / np.dot(u, u))
+        if 0.0 <= t <= 1.0:
+            return held
+        nxt = held + 1 if t > 1.0 else held - 1
+        if 0 <= nxt < len(self.suture.bodies):
+            return nxt
+        end = b if t > 1.0 else a
+        return held if float(np.linalg.norm(x - end)) <= self.reach else -1
+
+    @property
+    def slid(self) -> float:
+        """Total distance the thread has slid through the jaws [m] (sum of ``slips``)."""
+        return float(sum(s.distance for s in self.slips))
 
     def _nearest_segment(self) -> int:
         if self.suture is None:
@@ -456,10 +660,12 @@ class Grasper(Tool):
                     self.state = JawState.CLOSED
                     i = self._nearest_segment()
                     if i >= 0 and self.suture is not None:
-                        self._grasp = self._attach(self.body, self.suture.bodies[i])
-                        self.held_segment = i
+                        self._grip_capsule(i)
                 else:
                     self.state = JawState.OPEN
+        self._steps += 1
+        if self._grasp >= 0 and self._limited(self.held_segment):
+            self._limit_grip()
         if self.solid and self.held_segment != self._solid_for:
             self._solidify()
         self._step_hook()
@@ -803,6 +1009,12 @@ class Stitcher(Tool):
     The jaws open apart along the tip's x and close together, each taking ``travel_time``;
     with the jaws closed, :meth:`pass_needle` hands the needle to the other jaw (after
     ``travel_time``), which then carries it when the jaws open.
+
+    The needle lock has no grip limit (it holds with ``drive_force``), unlike a grasper's
+    jaws on the thread: the stitcher latches the needle in its jaw, and a needle, unlike a
+    thread, cannot slide through the jaw and be held further along; pulled out, it would
+    be lost, which is the fault :meth:`drop_needle` already models. A pull through the
+    needle is bounded by the monitor's layers, not by the jaws.
 
     Attributes:
         gap: distance between the closed jaws along the tip's x [m].

@@ -25,6 +25,7 @@ from suture_engine.language.units import Stiffness as StiffnessUnit
 
 __all__ = [
     "GRAVITY",
+    "GRIP_FRACTION",
     "KNOT_PULL_STRENGTH_KG",
     "ON_SURFACE_TOLERANCE",
     "SUTURE_DIAMETER_MM",
@@ -42,6 +43,8 @@ __all__ = [
     "Wound",
 ]
 
+GRIP_FRACTION = 0.9
+"""A grasper's default grip force, as a fraction of the scene's tension limit [-]."""
 UNIT_NORMAL_TOLERANCE = 1e-3
 """Largest accepted deviation of the tissue normal's length from 1 [-]."""
 ON_SURFACE_TOLERANCE = 1e-3
@@ -125,6 +128,11 @@ class RobotSpec(_Model):
     tool: ToolType
     """The tool: ``grasper``, ``hook-grasper`` (flexible hook, 4.4.2),
     ``bent-tip-grasper`` (algorithm 3) or ``stitcher`` (two jaws passing the needle)."""
+    grip_force: Force | None = Field(default=None, gt=0.0)
+    """Largest pull a grasper's jaws hold the thread with [N]; pulled harder, the thread
+    slides through them, so the pull through the grasp stays under it. At most the scene's
+    tension limit. ``None``: ``GRIP_FRACTION`` (0.9) times the tension limit. Graspers only:
+    the stitcher latches its needle, which cannot slide through the jaw."""
 
 
 class Wound(_Model):
@@ -279,6 +287,30 @@ class Scene(_Model):
         if len(v) != 2:
             raise ValueError(f"a scene has exactly two EndoBots, found {len(v)}")
         return v
+
+    @model_validator(mode="after")
+    def _grip_forces(self) -> Scene:
+        for name, spec in self.robots.items():
+            if spec.grip_force is None:
+                continue
+            if spec.tool == "stitcher":
+                raise ValueError(
+                    f"robots.{name}.grip_force: a stitcher latches its needle and has no "
+                    "grip force (graspers only)"
+                )
+            if spec.grip_force > self.tension_limit:
+                raise ValueError(
+                    f"robots.{name}.grip_force: {spec.grip_force:g} N is above the scene's "
+                    f"tension limit {self.tension_limit:.3g} N (the jaws would pull the "
+                    "thread past it)"
+                )
+        return self
+
+    def grip_force(self, robot: str) -> float:
+        """The grip force of ``robot``'s grasper [N] (its own, or ``GRIP_FRACTION`` times
+        the tension limit)."""
+        own = self.robots[robot].grip_force
+        return GRIP_FRACTION * self.tension_limit if own is None else own
 
     @field_validator("faults")
     @classmethod
