@@ -313,8 +313,8 @@ class Grasper(Tool):
             moved ``slip_step`` along it they grip it again where it now is, on the
             jaws' line (or, when its neighbour has come between the jaws, that capsule;
             when the thread's end has left them, nothing). Each re-grip is a
-            :class:`GripSlip` in ``slips``. A push across the thread (the jaws pressing
-            it into the tissue, 5.9 N in algorithm 2, seed 3, with 0.55 N of tension)
+            :class:`GripSlip` in ``slips``. A push across the thread (the hook grasper's
+            grasp carried 5.9 N in algorithm 2, seed 3, with at most 0.55 N of tension)
             is held at any force, as real jaws do. The capsule the needle is swaged to
             is the exception: jaws on it hold the needle, as a needle holder does, with
             ``drive_force`` (the needle cannot slide through them; a thread sliding
