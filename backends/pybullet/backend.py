@@ -16,12 +16,17 @@ their pre-step hooks before PyBullet steps; tool commands drive the tools (grasp
 jaws and hook, stitcher jaws and the needle hand-over); ``ground_truth`` adds the
 thread's centerline [m] and its largest segment tension [N], which the recorder
 writes on ``/ground_truth/*``. Skills never see them (they get observations only).
+Likewise evaluation only: :meth:`~PyBulletBackend.backend_events` gives each slide of
+the thread through a grasper's jaws (``grip-slip``, pulled harder than its grip force),
+which the interpreter records on ``/events``, and :meth:`~PyBulletBackend.run_metrics`
+their count and length for ``summary.json``.
 The plain ``pybullet`` backend holds the robots alone.
 """
 
 from __future__ import annotations
 
 import functools
+import json
 import math
 from collections.abc import Callable, Iterator, Mapping
 from typing import Any
@@ -31,6 +36,7 @@ import numpy as np
 from backends.base import BackendError
 from suture_engine.errors import SutureError
 from suture_engine.runtime.observation import (
+    BackendEvent,
     Command,
     CommandMode,
     Measurement,
@@ -199,6 +205,10 @@ class PyBulletBackend:
         self.suture_stiffness_scale = suture_stiffness_scale
         self.scene: Any = None
         """The :class:`backends.pybullet.scene.Scene` when the surgical scene is built."""
+        self._slips_seen: dict[str, int] = {}
+        self._slip_totals: dict[str, tuple[int, float]] = {}
+        self._events: list[BackendEvent] = []
+        self._has_graspers = False
 
     def _bases(self, scene: Any) -> dict[str, tuple[Any, Any, str]]:
         robots = getattr(scene, "robots", None)
@@ -227,6 +237,10 @@ class PyBulletBackend:
         self._bend_goal = {}
         self._forces = []
         self._hands = []
+        self._slips_seen = {}
+        self._slip_totals = {}
+        self._events = []
+        self._has_graspers = False
         self.tick = 0
         self._start_q = dict(self._q0)
         base_positions = {}
@@ -238,6 +252,8 @@ class PyBulletBackend:
         ft_model = self._ft_model(scene)
         if self._wants_surgical_scene(scene):
             self._build_surgical_scene(scene, seed, ft_model)
+            tools = self.scene.tools.values() if self.scene is not None else ()
+            self._has_graspers = any(hasattr(tool, "slips") for tool in tools)
             for name, (pos, _rpy, tool) in sorted(self._bases(scene).items()):
                 self._tools[name] = self._start_bend(self._measured_tool(name, tool))
                 base_positions[name] = (float(pos[0]), float(pos[1]), float(pos[2]))
@@ -391,6 +407,34 @@ class PyBulletBackend:
         self._p.stepSimulation(physicsClientId=self.client)
         if scene is not None:
             scene.time += self.dt
+            self._note_slips(scene)
+
+    def _note_slips(self, scene: Any) -> None:
+        """Turn the graspers' new :class:`~backends.pybullet.tools.GripSlip` records into
+        ``grip-slip`` events and running totals."""
+        for robot, tool in scene.tools.items():
+            slips = getattr(tool, "slips", None)
+            if not slips:
+                continue
+            seen = self._slips_seen.get(robot, 0)
+            if len(slips) == seen:
+                continue
+            count, length = self._slip_totals.get(robot, (0, 0.0))
+            for slip in slips[seen:]:
+                count += 1
+                length += slip.distance
+                detail = {
+                    "t": round(slip.time, 6),
+                    "force_N": round(slip.force, 4),
+                    "slid_mm": round(1e3 * slip.distance, 4),
+                    "from_segment": slip.from_segment,
+                    "to_segment": slip.to_segment,
+                }
+                self._events.append(
+                    BackendEvent("grip-slip", robot, json.dumps(detail, separators=(",", ":")))
+                )
+            self._slips_seen[robot] = len(slips)
+            self._slip_totals[robot] = (count, length)
 
     def _drive_tool(self, name: str, old: ToolState, new: ToolState) -> None:
         """Turn a change of the commanded tool state into the simulated tool's actions."""
@@ -557,6 +601,33 @@ class PyBulletBackend:
             self._step_bends()
         self._physics_step()
         self.tick += 1
+
+    def backend_events(self) -> list[BackendEvent]:
+        """The events since the last call (evaluation and traces only): a ``grip-slip``
+        per slide of the thread through a grasper's jaws
+        (:class:`~backends.pybullet.tools.GripSlip`), detail ``t`` (the tool's clock [s]),
+        ``force_N`` (the pull the jaws held in the step before [N]), ``slid_mm`` (how far
+        the thread slid [mm]), ``from_segment``/``to_segment`` (the capsules held before
+        and after; -1: none)."""
+        events, self._events = self._events, []
+        return events
+
+    def run_metrics(self) -> dict[str, Any]:
+        """The run's figures for ``summary.json`` (surgical scene with graspers only):
+        ``grip_slips`` (how many times the thread slid through a grasper's jaws),
+        ``grip_slip_mm`` (how far in all [mm]) and ``grip_slips_by_robot`` (robot ->
+        ``{"slips", "mm"}``, the graspers that slipped)."""
+        if not self._slip_totals and not self._has_graspers:
+            return {}
+        by_robot = {
+            robot: {"slips": n, "mm": round(1e3 * length, 4)}
+            for robot, (n, length) in sorted(self._slip_totals.items())
+        }
+        return {
+            "grip_slips": sum(n for n, _ in self._slip_totals.values()),
+            "grip_slip_mm": round(1e3 * sum(x for _, x in self._slip_totals.values()), 4),
+            "grip_slips_by_robot": by_robot,
+        }
 
     def geometry(self) -> SceneGeometry:
         """The scene's declared geometry."""

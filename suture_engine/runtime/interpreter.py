@@ -133,6 +133,7 @@ class Interpreter:
 
         self.plan = plan
         self.backend = backend
+        self._backend_events = getattr(backend, "backend_events", None)
         self.roles = dict(roles or {})
         self.params = dict(params or {})
         self.scene = scene
@@ -456,6 +457,14 @@ class Interpreter:
             return None
         return result.command
 
+    def _record_backend_events(self, time_ns: int) -> None:
+        """Record what the world did in the last step that no sensor measures
+        (:class:`~suture_engine.runtime.observation.BackendEvent`): ``info`` events,
+        which the automaton does not react to."""
+        assert self._backend_events is not None
+        for ev in self._backend_events():
+            self.recorder.event(time_ns, ev.name, "info", self.automaton.state, ev.detail, ev.robot)
+
     def _manual_check(self, time_ns: int, obs: Observation) -> None:
         a = self.automaton
         if a.mode is not Mode.MANUAL or self.manual_invariant is None:
@@ -477,6 +486,8 @@ class Interpreter:
         a = self.automaton
         if self.tick_index == 0:
             self._record_transitions(time_ns, a.start())
+        if self._backend_events is not None:
+            self._record_backend_events(time_ns)
         self._emergency_check(time_ns, obs)
         self._handle_operator(time_ns, obs)
         self._held_robot_blocks(time_ns)
@@ -607,6 +618,10 @@ class Interpreter:
         evaluation = self._evaluate()
         for key, value in evaluation.metrics.items():
             metrics.setdefault(key, value)
+        run_metrics = getattr(self.backend, "run_metrics", None)
+        if run_metrics is not None:
+            for key, value in run_metrics().items():
+                metrics.setdefault(key, value)
         return RunSummary(
             procedure=procedure,
             outcome=outcome,

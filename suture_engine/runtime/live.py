@@ -197,9 +197,17 @@ class TappedRecorder:
         why = f": {record.reason}" if record.reason else ""
         self.lines.append(f"{time_ns * 1e-9:8.3f} s  {record.source} -> {record.dest}{why}")
 
-    def event(self, time_ns: int, name: str, kind: str, state: str, detail: str) -> None:
+    def event(
+        self,
+        time_ns: int,
+        name: str,
+        kind: str,
+        state: str,
+        detail: str,
+        robot: str | None = None,
+    ) -> None:
         """Forward, and list the event."""
-        self.inner.event(time_ns, name, kind, state, detail)
+        self.inner.event(time_ns, name, kind, state, detail, robot)
         self.lines.append(f"{time_ns * 1e-9:8.3f} s  {kind} {name} in {state}: {detail}")
 
     def operator(self, time_ns: int, event: OperatorEvent, accepted: bool, detail: str) -> None:

@@ -29,7 +29,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
+    "BACKEND_EVENTS",
     "N_JOINTS",
+    "BackendEvent",
     "Command",
     "CommandMode",
     "Measurement",
@@ -168,6 +170,35 @@ def scene_geometry(
         tissue_normal=np.asarray(getattr(tissue, "normal", (0.0, 0.0, 1.0)), dtype=float),
         base_positions=bases,  # type: ignore[arg-type]
     )
+
+
+BACKEND_EVENTS = frozenset({"grip-slip"})
+"""Names of the events a backend may report (:class:`BackendEvent`)."""
+
+
+@dataclass(frozen=True)
+class BackendEvent:
+    """Something the simulated world did that no sensor measures (e.g. the thread slid
+    through a grasper's jaws). Evaluation and traces only, like the ground truth.
+
+    A backend that has such events offers ``backend_events() -> list[BackendEvent]`` (the ones
+    since the last call); the interpreter records each on ``/events`` as an ``info``
+    event, which starts no transition. The replay backend has none, so the replay does
+    not compare them.
+
+    Attributes:
+        name: one of :data:`BACKEND_EVENTS`.
+        robot: the robot concerned, or None.
+        detail: the event's values, as compact JSON (SI units unless the key says).
+    """
+
+    name: str
+    robot: str | None
+    detail: str
+
+    def __post_init__(self) -> None:
+        if self.name not in BACKEND_EVENTS:
+            raise ValueError(f"unknown backend event {self.name!r}")
 
 
 @dataclass(frozen=True)

@@ -63,8 +63,17 @@ class Recorder:
     def operator(self, time_ns: int, event: OperatorEvent, accepted: bool, detail: str) -> None:
         """Record one operator event."""
 
-    def event(self, time_ns: int, name: str, kind: str, state: str, detail: str) -> None:
-        """Record an event that changes no state (e.g. a refused operator action)."""
+    def event(
+        self,
+        time_ns: int,
+        name: str,
+        kind: str,
+        state: str,
+        detail: str,
+        robot: str | None = None,
+    ) -> None:
+        """Record an event that changes no state (e.g. a refused operator action, a
+        backend's event); ``robot``: the robot concerned, if any."""
 
     def qp(self, time_ns: int, robot: str, result: Any) -> None:
         """Record one QP solve's status (a ``constrained_qp.QPResult``)."""
@@ -323,14 +332,26 @@ class TraceRecorder(Recorder):
             msg["detail"] += f"; velocity={list(event.velocity)!r}; stiffness={event.stiffness!r}"
         self.writer.write(self._ch.OPERATOR, time_ns, msg)
 
-    def event(self, time_ns: int, name: str, kind: str, state: str, detail: str) -> None:
-        """Record an event on ``/events``."""
+    def event(
+        self,
+        time_ns: int,
+        name: str,
+        kind: str,
+        state: str,
+        detail: str,
+        robot: str | None = None,
+    ) -> None:
+        """Record an event on ``/events`` (with ``robot`` when one is given)."""
         self._drain()
-        self.writer.write(
-            self._ch.EVENTS,
-            time_ns,
-            {"name": name, "kind": _EVENT_KIND.get(kind, "info"), "state": state, "detail": detail},
-        )
+        msg: dict[str, Any] = {
+            "name": name,
+            "kind": _EVENT_KIND.get(kind, "info"),
+            "state": state,
+            "detail": detail,
+        }
+        if robot is not None:
+            msg["robot"] = robot
+        self.writer.write(self._ch.EVENTS, time_ns, msg)
 
     def qp(self, time_ns: int, robot: str, result: Any) -> None:
         """Record one QP solve on ``/qp/<robot>`` (the wall-clock solve time is dropped).

@@ -446,10 +446,14 @@ def _until(messages: Iterator[Any], last_ns: int) -> Iterator[Any]:
 
 def _fault_record(msg: Any) -> bool:
     """A record of an injected fault (``/events`` ``fault:<kind>``, when the trace has no
-    ``/faults`` channel): the replay does not re-inject faults, so it is not compared."""
+    ``/faults`` channel) or a backend's event (``BACKEND_EVENTS``, e.g. ``grip-slip``):
+    the replay does not re-inject faults nor simulate the world, so it is not compared."""
+    from suture_engine.runtime.observation import BACKEND_EVENTS
+
     if msg.topic != "/events" or not isinstance(msg.data, dict):
         return False
-    return str(msg.data.get("name", "")).startswith("fault:")
+    name = str(msg.data.get("name", ""))
+    return name.startswith("fault:") or name in BACKEND_EVENTS
 
 
 def replay_trace(

@@ -35,7 +35,11 @@ class RunSummary:
             (:mod:`suture_engine.runtime.evaluation`): ``peak_tension_N``,
             ``final_tension_N`` (estimate), ``peak_true_tension_N``,
             ``final_true_tension_N`` (simulated thread) and ``stitches`` (entry/exit
-            position error, bite depth, spacing mean and SD; None without a thread).
+            position error, bite depth, spacing mean and SD; None without a thread),
+            plus the backend's own (``run_metrics()``; the PyBullet surgical scene with
+            graspers: ``grip_slips``, the times the thread slid through a grasper's
+            jaws, ``grip_slip_mm``, how far in all [mm], and ``grip_slips_by_robot``,
+            robot -> ``{"slips", "mm"}``).
         knot: the ground-truth knot evaluation: one entry (a dict with ``type``,
             ``determinant``, ``v2``, ``v3``, ``seated``, ``post_straight``, ``lay``, ...),
             a list of them when the thread has several stitches (one per stitch), or

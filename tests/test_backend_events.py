@@ -1,0 +1,221 @@
+"""Events a backend reports that no sensor measures (``BackendEvent``): the PyBullet
+backend's ``grip-slip`` (the thread slid through a grasper's jaws, pulled above its
+``grip_limit``), recorded on ``/events`` as ``info`` events that start no transition,
+counted in the summary's ``grip_slips`` / ``grip_slip_mm``, and not compared by the
+replay.
+
+The physics rig is the one of ``tests/test_tools.py`` (a thread between two graspers'
+jaws, the far one driven away), stepped through the backend's own physics step.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+import pytest
+
+from suture_engine.runtime.automaton import FailurePolicy, Outcome, Plan, StepSpec
+from suture_engine.runtime.interpreter import Interpreter
+from suture_engine.runtime.observation import BackendEvent
+from suture_engine.runtime.recorder import TraceRecorder
+from suture_engine.runtime.testing import IdealBackend, ScriptedSkill
+from suture_engine.trace.reader import TraceReader
+
+LIMIT = 3.0
+"""The held grasper's grip limit [N]."""
+SEGMENTS = 16
+LENGTH = 0.12
+HELD = 8
+
+
+def _rig_backend(limit: float) -> Any:
+    """A PyBullet backend whose surgical scene is the two-grasper rig: ``endobot_1``'s
+    jaws (limited) hold the thread mid-way, ``endobot_2``'s (unlimited) its far end."""
+    p = pytest.importorskip("pybullet")
+    from backends.pybullet.backend import PyBulletBackend
+    from backends.pybullet.suture import Suture, SutureParams, configure_physics, straight_path
+    from backends.pybullet.tools import Grasper
+
+    c = p.connect(p.DIRECT)
+    configure_physics(c)
+    params = SutureParams(length=LENGTH, n_segments=SEGMENTS, needle=False)
+    suture = Suture.create(c, straight_path((0.0, 0.0, 0.05), (1.0, 0.0, 0.0), LENGTH), params)
+    line = suture.centerline()
+    near = Grasper.create(
+        c,
+        "near",
+        tuple((line[HELD] + line[HELD + 1]) / 2),
+        suture=suture,
+        hook=False,
+        grip_limit=limit,
+    )
+    far = Grasper.create(c, "far", tuple((line[-2] + line[-1]) / 2), suture=suture, hook=False)
+    near.grip(HELD)
+    far.grip(SEGMENTS - 1)
+    be = PyBulletBackend()
+    be._p, be.client = p, c
+    be.scene = SimpleNamespace(
+        tools={"endobot_1": near, "endobot_2": far}, suture=suture, tissue=None, time=0.0
+    )
+    be._has_graspers = True
+    return be
+
+
+def _drag(be: Any, distance: float, speed: float = 0.02) -> list[BackendEvent]:
+    """Settle 0.2 s, then drive ``endobot_2``'s jaws ``distance`` along the thread at
+    ``speed``, hold 0.2 s; the backend's events, read every step."""
+    far = be.scene.tools["endobot_2"]
+    x = np.asarray(far.pose()[0])
+    events: list[BackendEvent] = []
+    steps = round(distance / speed * 1000)
+    for i in range(200 + steps + 200):
+        if 200 <= i < 200 + steps:
+            x = x + np.array([speed * 1e-3, 0.0, 0.0])
+            far.set_pose(tuple(x))
+        be._physics_step()
+        events += be.backend_events()
+    return events
+
+
+def test_a_pull_above_the_grip_limit_reports_grip_slips_at_the_limit() -> None:
+    be = _rig_backend(LIMIT)
+    try:
+        events = _drag(be, 0.006)
+        near = be.scene.tools["endobot_1"]
+        assert events and len(events) == len(near.slips)
+        assert {(e.name, e.robot) for e in events} == {("grip-slip", "endobot_1")}
+        details = [json.loads(e.detail) for e in events]
+        for d in details:
+            assert d["force_N"] == pytest.approx(LIMIT, rel=0.10)
+            assert d["slid_mm"] > 0.0
+        slid = sum(d["slid_mm"] for d in details)
+        assert slid == pytest.approx(1e3 * near.slid, abs=1e-3)
+        assert 3.0 < slid < 6.5
+        m = be.run_metrics()
+        assert m["grip_slips"] == len(events)
+        assert m["grip_slip_mm"] == pytest.approx(slid, abs=1e-3)
+        assert m["grip_slips_by_robot"] == {
+            "endobot_1": {"slips": len(events), "mm": m["grip_slip_mm"]}
+        }
+        assert be.backend_events() == []  # drained
+    finally:
+        be.close()
+
+
+def test_a_pull_below_the_grip_limit_reports_none() -> None:
+    be = _rig_backend(LIMIT)
+    try:
+        far = be.scene.tools["endobot_2"]
+        near = be.scene.tools["endobot_1"]
+        x = np.asarray(far.pose()[0])
+        events: list[BackendEvent] = []
+        for _ in range(200):
+            be._physics_step()
+        for _ in range(5000):  # pull to 0.8 x the limit, then hold 0.5 s
+            if near.grip_force() >= 0.8 * LIMIT:
+                break
+            x = x + np.array([1e-5, 0.0, 0.0])
+            far.set_pose(tuple(x))
+            be._physics_step()
+            events += be.backend_events()
+        else:
+            pytest.fail("the pull never reached 0.8 x the limit")
+        for _ in range(500):
+            be._physics_step()
+            events += be.backend_events()
+        assert events == []
+        assert be.run_metrics() == {"grip_slips": 0, "grip_slip_mm": 0.0, "grip_slips_by_robot": {}}
+    finally:
+        be.close()
+
+
+def test_an_unknown_backend_event_is_refused() -> None:
+    with pytest.raises(ValueError, match="unknown backend event"):
+        BackendEvent("slipped", "endobot_1", "{}")
+
+
+class _SlippingBackend(IdealBackend):
+    """The ideal backend, reporting a grip slip of ``endobot_1`` at its 50th step."""
+
+    def __init__(self, slip: bool) -> None:
+        super().__init__()
+        self.slip = slip
+        self.steps = 0
+        self._pending: list[BackendEvent] = []
+
+    def step(self) -> None:
+        super().step()
+        self.steps += 1
+        if self.slip and self.steps == 50:
+            self._pending.append(BackendEvent("grip-slip", "endobot_1", '{"force_N":3.0}'))
+
+    def backend_events(self) -> list[BackendEvent]:
+        out, self._pending = self._pending, []
+        return out
+
+    def run_metrics(self) -> dict[str, Any]:
+        return {"grip_slips": 1 if self.slip else 0}
+
+
+def _run(tmp_path: Path, slip: bool) -> tuple[Any, list[Any], list[Any]]:
+    plan = Plan(
+        "p",
+        "a",
+        {
+            "a": StepSpec(
+                "a", lambda: ScriptedSkill("a", "success", after_s=0.1), "end", FailurePolicy(0)
+            )
+        },
+        {"end": Outcome.SUCCEEDED},
+    )
+    be = _SlippingBackend(slip)
+    first = be.reset()
+    trace = tmp_path / f"slip-{slip}.mcap"
+    rec = TraceRecorder(
+        trace,
+        procedure="p",
+        seed=0,
+        control_rate_hz=1000.0,
+        robots=tuple(first.robots),
+        backend="ideal",
+        params={},
+    )
+    summary = Interpreter(plan, be, first, recorder=rec).run("p", "ideal")
+    reader = TraceReader(trace)
+    events = [m for m in reader.messages(["/events"])]
+    transitions = [m.data for m in TraceReader(trace).messages(["/transitions"])]
+    return summary, events, transitions
+
+
+def test_backend_events_are_recorded_as_info_and_start_no_transition(tmp_path: Path) -> None:
+    s0, events0, transitions0 = _run(tmp_path, False)
+    s1, events1, transitions1 = _run(tmp_path, True)
+    assert transitions1 == transitions0
+    assert (s1.outcome, s1.final_state) == (s0.outcome, s0.final_state) == ("succeeded", "end")
+    slips = [m for m in events1 if m.data["name"] == "grip-slip"]
+    assert len(slips) == 1
+    assert slips[0].data == {
+        "name": "grip-slip",
+        "kind": "info",
+        "state": "autonomous/a",
+        "detail": '{"force_N":3.0}',
+        "robot": "endobot_1",
+    }
+    assert slips[0].log_time_ns == 50_000_000  # recorded at the tick that measures it
+    assert [m.data for m in events1 if m.data["name"] != "grip-slip"] == [m.data for m in events0]
+    assert (s0.metrics["grip_slips"], s1.metrics["grip_slips"]) == (0, 1)
+
+
+def test_the_replay_does_not_compare_backend_events() -> None:
+    from suture_engine.runtime.run import _fault_record
+
+    def msg(name: str) -> Any:
+        return SimpleNamespace(topic="/events", data={"name": name, "kind": "info"})
+
+    assert _fault_record(msg("grip-slip"))
+    assert _fault_record(msg("fault:grasp-slip"))
+    assert not _fault_record(msg("advance"))
