@@ -71,14 +71,15 @@ def test_square_knot_is_a_simple_knot_then_its_mirror() -> None:
     assert first.use.name == second.use.name == "knot-algorithm-2"
     assert first.use.params["mirror"] is False
     assert second.use.params["mirror"] is True
-    # the mirror image loops the other way round the hook (4.4.2)
-    # the mirror image loops over the hook the other way (which way is "front" is the
-    # wrap skill's convention; the procedure's comment says which one ties the knot)
-    directions = {
-        first.use.states["over-hook"].params.direction,  # type: ignore[union-attr]
-        second.use.states["over-hook"].params.direction,  # type: ignore[union-attr]
-    }
-    assert directions == {"front-to-back", "back-to-front"}
+    # the mirror image passes the needle the other way: the first throw left it in the
+    # stitcher's other jaw, so the second passes it back at the same roll (with the
+    # stitcher turned 180 deg it would pass the same way: a granny knot)
+    rolls = [s.use.states["under"].params.roll for s in (first, second)]  # type: ignore[union-attr]
+    assert rolls[0] == pytest.approx(rolls[1])
+    granny = load_procedure(PROCEDURES / "square-knot.yaml", params={"mirror": False})
+    third = granny.states["mirrored-knot"].use
+    assert third is not None
+    assert third.states["under"].params.roll == pytest.approx(rolls[0] + math.pi)  # type: ignore[union-attr]
     # the second throw does not stitch again
     assert second.use.states["stitch"].enabled is False
     assert first.use.states["stitch"].enabled is True

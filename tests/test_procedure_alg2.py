@@ -10,6 +10,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import math
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -113,9 +114,9 @@ def test_slide_to_tip_straddles_the_grasper_tip(mirror: bool, tail_mm: int) -> N
     away = (o1 - o2) / np.linalg.norm(o1 - o2)
     assert np.asarray(cinch.target) @ away > 0.9 * np.linalg.norm(np.asarray(cinch.target))
     assert np.asarray(tighten.target) @ away > 0.9 * np.linalg.norm(np.asarray(tighten.target))
-    assert proc.states["over-hook"].params.direction == (
-        "front-to-back" if mirror else "back-to-front"
-    )
+    # the loop drapes over the hook from back to front only (the strand's anchor lies on
+    # the exit's side); the mirror image passes the needle the other way instead
+    assert proc.states["over-hook"].params.direction == "back-to-front"
 
 
 def _min_jerk_duration(distance: float, speed: float) -> float:
@@ -282,3 +283,49 @@ def test_the_second_throw_keeps_the_tail_and_the_stitched_start_skips_the_stitch
     # the grasper holds the tail from the first throw on: no second grab and lift
     assert first["grab-tail"].enabled and first["lift-tail"].enabled
     assert not second["grab-tail"].enabled and not second["lift-tail"].enabled
+
+
+@pytest.mark.parametrize(
+    ("mirror", "second", "roll_deg"), [(False, False, -90), (True, True, -90), (False, True, 90), (True, False, 90)]
+)
+def test_the_needle_passes_back_on_a_mirrored_second_throw(mirror: bool, second: bool, roll_deg: int) -> None:
+    # The first throw passes the needle from one jaw to the other, so a second throw
+    # starts with it in the other jaw: the same roll passes it back (the mirror image),
+    # the stitcher turned 180 deg passes it the same way as the first (a granny knot).
+    proc: Any = load_procedure(
+        ROOT / "procedures" / "knot-algorithm-2.yaml",
+        params={"mirror": mirror, "second": second, "stitch": False},
+    )
+    for name in ("slide-to-tip", "under"):
+        assert math.degrees(proc.states[name].params.roll) == pytest.approx(roll_deg)
+    # a second throw keeps the grasper's roll and the tail, brings the stitcher back over
+    # the exit first and comes down beside the stem before the slide to its tip
+    for name in ("hook-up", "grab-tail", "lift-tail"):
+        assert proc.states[name].enabled is not second
+    for name in ("hand-up", "clear-stem"):
+        assert proc.states[name].enabled is second
+
+
+def test_the_second_throw_comes_down_clear_of_the_grasper_stem() -> None:
+    proc: Any = load_procedure(
+        ROOT / "procedures" / "knot-algorithm-2.yaml", params={"second": True, "stitch": False}
+    )
+    grab = proc.states["grab-tail"].params
+    lift = proc.states["lift-tail"].params
+    points = proc.scene.tissue.points
+    tip2 = np.asarray(points[grab.target], dtype=float) + np.asarray(grab.offset) + np.asarray(lift.target)
+    o1, _ = _base(proc, "stitcher")
+    o2, _ = _base(proc, "grasper")
+    up = (o2 - tip2) / np.linalg.norm(o2 - tip2)
+    hand = proc.states["hand-up"].params
+    assert hand.target == "exit_2" and hand.offset[2] >= 30e-3
+    clear = proc.states["clear-stem"].params
+    assert clear.relative_to == "grasper"
+    rel = np.asarray(clear.target)
+    # 25 mm or more off the grasper's stem (its jaws and hook span ~5 mm), above its tip
+    # and the tissue, and the stitcher's shaft clears the grasper's
+    assert float(np.linalg.norm(rel - (rel @ up) * up)) >= 25e-3
+    assert rel @ up > 0.0 and (tip2 + rel)[2] > 5e-3
+    point = tip2 + rel
+    u1 = (o1 - point) / np.linalg.norm(o1 - point)
+    assert _segment_distance(point + JAW_REGION * u1, o1, tip2 + JAW_REGION * up, o2) > 2.0 * SHAFT_RADIUS + 1e-3
