@@ -44,6 +44,14 @@ JAW_INNER = 3e-3
 """Distance from the stitcher's tip to the inner face of either closed jaw [m]."""
 
 
+def _lifted_tip(proc: Any) -> Any:
+    """The grasper's tip after the first throw's lift [m]: the grab point plus the lift."""
+    grab = proc.states["grab-tail"].params
+    lift = proc.states["lift-tail"].params
+    entry = np.asarray(proc.scene.tissue.points[grab.target], dtype=float)
+    return entry + np.asarray(grab.offset) + np.asarray(lift.target)
+
+
 @pytest.mark.parametrize(("mirror", "tail_mm"), [(False, 30), (True, 30), (False, 40), (False, 45)])
 def test_slide_to_tip_straddles_the_grasper_tip(mirror: bool, tail_mm: int) -> None:
     proc: Any = load_procedure(
@@ -52,13 +60,8 @@ def test_slide_to_tip_straddles_the_grasper_tip(mirror: bool, tail_mm: int) -> N
     )
     grab = proc.states["grab-tail"].params
     points = proc.scene.tissue.points
-    lift = proc.states["lift-tail"].params
-    assert lift.relative_to == "grasper"
-    tip2 = (
-        np.asarray(points[grab.target], dtype=float)
-        + np.asarray(grab.offset)
-        + np.asarray(lift.target)
-    )
+    assert proc.states["lift-tail"].params.relative_to == "grasper"
+    tip2 = _lifted_tip(proc)
     o1, _ = _base(proc, "stitcher")
     o2, _ = _base(proc, "grasper")
     slide = proc.states["slide-to-tip"].params
@@ -337,14 +340,7 @@ def test_the_second_throw_comes_down_clear_of_the_grasper_stem() -> None:
     proc: Any = load_procedure(
         ROOT / "procedures" / "knot-algorithm-2.yaml", params={"second": True, "stitch": False}
     )
-    grab = proc.states["grab-tail"].params
-    lift = proc.states["lift-tail"].params
-    points = proc.scene.tissue.points
-    tip2 = (
-        np.asarray(points[grab.target], dtype=float)
-        + np.asarray(grab.offset)
-        + np.asarray(lift.target)
-    )
+    tip2 = _lifted_tip(proc)
     o1, _ = _base(proc, "stitcher")
     o2, _ = _base(proc, "grasper")
     up = (o2 - tip2) / np.linalg.norm(o2 - tip2)
