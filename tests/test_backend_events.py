@@ -61,7 +61,6 @@ def _rig_backend(limit: float) -> Any:
     be.scene = SimpleNamespace(
         tools={"endobot_1": near, "endobot_2": far}, suture=suture, tissue=None, time=0.0
     )
-    be._has_graspers = True
     return be
 
 

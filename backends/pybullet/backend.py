@@ -206,9 +206,7 @@ class PyBulletBackend:
         self.scene: Any = None
         """The :class:`backends.pybullet.scene.Scene` when the surgical scene is built."""
         self._slips_seen: dict[str, int] = {}
-        self._slip_totals: dict[str, tuple[int, float]] = {}
-        self._events: list[BackendEvent] = []
-        self._has_graspers = False
+        """Per robot, how many of its grasper's slips :meth:`backend_events` has given."""
 
     def _bases(self, scene: Any) -> dict[str, tuple[Any, Any, str]]:
         robots = getattr(scene, "robots", None)
@@ -238,9 +236,6 @@ class PyBulletBackend:
         self._forces = []
         self._hands = []
         self._slips_seen = {}
-        self._slip_totals = {}
-        self._events = []
-        self._has_graspers = False
         self.tick = 0
         self._start_q = dict(self._q0)
         base_positions = {}
@@ -252,8 +247,6 @@ class PyBulletBackend:
         ft_model = self._ft_model(scene)
         if self._wants_surgical_scene(scene):
             self._build_surgical_scene(scene, seed, ft_model)
-            tools = self.scene.tools.values() if self.scene is not None else ()
-            self._has_graspers = any(hasattr(tool, "slips") for tool in tools)
             for name, (pos, _rpy, tool) in sorted(self._bases(scene).items()):
                 self._tools[name] = self._start_bend(self._measured_tool(name, tool))
                 base_positions[name] = (float(pos[0]), float(pos[1]), float(pos[2]))
@@ -407,34 +400,6 @@ class PyBulletBackend:
         self._p.stepSimulation(physicsClientId=self.client)
         if scene is not None:
             scene.time += self.dt
-            self._note_slips(scene)
-
-    def _note_slips(self, scene: Any) -> None:
-        """Turn the graspers' new :class:`~backends.pybullet.tools.GripSlip` records into
-        ``grip-slip`` events and running totals."""
-        for robot, tool in scene.tools.items():
-            slips = getattr(tool, "slips", None)
-            if not slips:
-                continue
-            seen = self._slips_seen.get(robot, 0)
-            if len(slips) == seen:
-                continue
-            count, length = self._slip_totals.get(robot, (0, 0.0))
-            for slip in slips[seen:]:
-                count += 1
-                length += slip.distance
-                detail = {
-                    "t": round(slip.time, 6),
-                    "force_N": round(slip.force, 4),
-                    "slid_mm": round(1e3 * slip.distance, 4),
-                    "from_segment": slip.from_segment,
-                    "to_segment": slip.to_segment,
-                }
-                self._events.append(
-                    BackendEvent("grip-slip", robot, json.dumps(detail, separators=(",", ":")))
-                )
-            self._slips_seen[robot] = len(slips)
-            self._slip_totals[robot] = (count, length)
 
     def _drive_tool(self, name: str, old: ToolState, new: ToolState) -> None:
         """Turn a change of the commanded tool state into the simulated tool's actions."""
@@ -602,6 +567,11 @@ class PyBulletBackend:
         self._physics_step()
         self.tick += 1
 
+    def _graspers(self) -> dict[str, Any]:
+        """The surgical scene's graspers (tools that record slips), by robot."""
+        tools = self.scene.tools if self.scene is not None else {}
+        return {robot: t for robot, t in sorted(tools.items()) if hasattr(t, "slips")}
+
     def backend_events(self) -> list[BackendEvent]:
         """The events since the last call (evaluation and traces only): a ``grip-slip``
         per slide of the thread through a grasper's jaws
@@ -609,7 +579,21 @@ class PyBulletBackend:
         ``force_N`` (the pull the jaws held in the step before [N]), ``slid_mm`` (how far
         the thread slid [mm]), ``from_segment``/``to_segment`` (the capsules held before
         and after; -1: none)."""
-        events, self._events = self._events, []
+        events = []
+        for robot, tool in self._graspers().items():
+            seen = self._slips_seen.get(robot, 0)
+            for slip in tool.slips[seen:]:
+                detail = {
+                    "t": round(slip.time, 6),
+                    "force_N": round(slip.force, 4),
+                    "slid_mm": round(1e3 * slip.distance, 4),
+                    "from_segment": slip.from_segment,
+                    "to_segment": slip.to_segment,
+                }
+                events.append(
+                    BackendEvent("grip-slip", robot, json.dumps(detail, separators=(",", ":")))
+                )
+            self._slips_seen[robot] = len(tool.slips)
         return events
 
     def run_metrics(self) -> dict[str, Any]:
@@ -617,16 +601,17 @@ class PyBulletBackend:
         ``grip_slips`` (how many times the thread slid through a grasper's jaws),
         ``grip_slip_mm`` (how far in all [mm]) and ``grip_slips_by_robot`` (robot ->
         ``{"slips", "mm"}``, the graspers that slipped)."""
-        if not self._slip_totals and not self._has_graspers:
+        graspers = self._graspers()
+        if not graspers:
             return {}
-        by_robot = {
-            robot: {"slips": n, "mm": round(1e3 * length, 4)}
-            for robot, (n, length) in sorted(self._slip_totals.items())
-        }
+        slipped = {robot: t for robot, t in graspers.items() if t.slips}
         return {
-            "grip_slips": sum(n for n, _ in self._slip_totals.values()),
-            "grip_slip_mm": round(1e3 * sum(x for _, x in self._slip_totals.values()), 4),
-            "grip_slips_by_robot": by_robot,
+            "grip_slips": sum(len(t.slips) for t in slipped.values()),
+            "grip_slip_mm": round(1e3 * sum(t.slid for t in slipped.values()), 4),
+            "grip_slips_by_robot": {
+                robot: {"slips": len(t.slips), "mm": round(1e3 * t.slid, 4)}
+                for robot, t in slipped.items()
+            },
         }
 
     def geometry(self) -> SceneGeometry:
