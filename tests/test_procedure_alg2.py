@@ -117,8 +117,7 @@ def test_slide_to_tip_straddles_the_grasper_tip(mirror: bool, tail_mm: int) -> N
     away = (o1 - o2) / np.linalg.norm(o1 - o2)
     assert np.asarray(cinch.target) @ away > 0.9 * np.linalg.norm(np.asarray(cinch.target))
     assert np.asarray(tighten.target) @ away > 0.9 * np.linalg.norm(np.asarray(tighten.target))
-    # the loop drapes over the hook from back to front only (the strand's anchor lies on
-    # the exit's side); the mirror image passes the needle the other way instead
+    # a first throw loops back to front (a mirrored second throw: see the next tests)
     assert proc.states["over-hook"].params.direction == "back-to-front"
 
 
@@ -299,6 +298,32 @@ def test_a_second_throw_that_is_not_mirrored_ties_a_granny_knot(tmp_path: Path) 
     assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
 
 
+@pytest.mark.slow
+def test_algorithm_2_ties_a_square_knot_on_the_surgical_backend(tmp_path: Path) -> None:
+    """The main job on the thread, from the stitched start (seed 1): the first throw, then
+    its mirror image, and the ground-truth classifier finds a square knot (determinant 9,
+    v3 0: two trefoils of opposite handedness) that binds the stitch, with the true
+    tension under the derived limit all along."""
+    import json
+
+    from suture_engine.runtime.run import run_procedure
+
+    run_procedure(
+        ROOT / "procedures" / "square-knot.yaml",
+        backend="pybullet-surgical-stitched",
+        seed=1,
+        sets=["stitch=false"],
+        out=tmp_path / "run",
+        max_time_s=220,
+    )
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["outcome"] == "succeeded"
+    knot = summary["knot"][0] if isinstance(summary["knot"], list) else summary["knot"]
+    assert knot["type"] == "square" and knot["determinant"] == 9 and knot["v3"] == 0
+    assert knot["through_tissue"]
+    assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
+
+
 def test_the_second_throw_keeps_the_tail_and_the_stitched_start_skips_the_stitch() -> None:
     proc: Any = load_procedure(
         ROOT / "procedures" / "square-knot.yaml", params={"algorithm": 2, "stitch": False}
@@ -334,6 +359,8 @@ def test_the_needle_passes_back_on_a_mirrored_second_throw(
         assert proc.states[name].enabled is not second
     for name in ("hand-up", "clear-stem"):
         assert proc.states[name].enabled is second
+    # only the mirrored second throw carries the tail over first
+    assert proc.states["cross-tail"].enabled is (second and mirror)
 
 
 def test_the_second_throw_comes_down_clear_of_the_grasper_stem() -> None:
@@ -357,3 +384,80 @@ def test_the_second_throw_comes_down_clear_of_the_grasper_stem() -> None:
     u1 = (o1 - point) / np.linalg.norm(o1 - point)
     gap = _segment_distance(point + JAW_REGION * u1, o1, tip2 + JAW_REGION * up, o2)
     assert gap > 2.0 * SHAFT_RADIUS + 1e-3
+
+
+def _grasper_frame(tip: Any, o1: Any, o2: Any) -> tuple[Any, Any, Any]:
+    """The grasper's shaft frame at ``tip``: along the shaft (tip to RCM), towards the
+    stitcher's RCM point (orthogonal to the shaft), and sideways (shaft x towards)."""
+    along = (o2 - tip) / np.linalg.norm(o2 - tip)
+    towards = (o1 - tip) - ((o1 - tip) @ along) * along
+    towards /= np.linalg.norm(towards)
+    return along, towards, np.cross(along, towards)
+
+
+def test_the_mirrored_second_throw_is_the_first_reflected_in_the_grasper_frame() -> None:
+    # A square knot's second throw is the first one's mirror image. Here it is built by
+    # reflecting the first throw in the grasper's frame (sideways reversed): the grasper
+    # first carries the tail over so that the stitch lies on the other side of its shaft,
+    # and every stitcher target relative to the grasper is reflected. The check rebuilds
+    # both frames from the scene's base poses and the first throw's grab, lift and
+    # back-out, not from the procedure's comments.
+    first: Any = load_procedure(
+        ROOT / "procedures" / "knot-algorithm-2.yaml", params={"stitch": False}
+    )
+    mirrored: Any = load_procedure(
+        ROOT / "procedures" / "knot-algorithm-2.yaml",
+        params={"stitch": False, "second": True, "mirror": True},
+    )
+    o1, _ = _base(first, "stitcher")
+    o2, _ = _base(first, "grasper")
+    points = first.scene.tissue.points
+    stitch = 0.5 * (np.asarray(points["entry_2"], float) + np.asarray(points["exit_2"], float))
+    # the first throw ends with the grasper backed out along its shaft (pull-through)
+    tip1 = _lifted_tip(first) + np.asarray(first.states["pull-through"].params.target)
+    cross = mirrored.states["cross-tail"]
+    assert cross.enabled and not first.states["cross-tail"].enabled
+    assert cross.params.relative_to == "grasper" and cross.params.robot == "grasper"
+    tip2 = tip1 + np.asarray(cross.params.target)
+    f1, f2 = _grasper_frame(tip1, o1, o2), _grasper_frame(tip2, o1, o2)
+    k1 = np.array([(stitch - tip1) @ e for e in f1])
+    k2 = np.array([(stitch - tip2) @ e for e in f2])
+    # the stitch (the first knot) changes side and keeps its place along and across
+    assert k1[2] < -5e-3 and k2[2] > 5e-3
+    assert np.allclose(k2 * (1, 1, -1), k1, atol=2.5e-3)
+
+    def frame_coords(proc: Any, state: str, tip: Any, frame: Any) -> Any:
+        params = proc.states[state].params
+        assert params.relative_to == "grasper"
+        rel = np.asarray(params.target) + np.asarray(params.offset)
+        return np.array([rel @ e for e in frame])
+
+    # slide-to-tip: the reflection, 10 mm beyond the crossed tip on its axis
+    a1 = frame_coords(first, "slide-to-tip", tip1, f1)
+    a2 = frame_coords(mirrored, "slide-to-tip", tip2, f2)
+    assert np.allclose(a2 * (1, 1, -1), a1, atol=0.5e-3)
+    assert -12e-3 <= a2[0] <= -8e-3 and np.hypot(a2[1], a2[2]) < JAW_INNER
+    # under: 10 mm beyond and 10 mm to the tail's side like the first throw's, moved 3-6 mm
+    # further sideways, towards where the needle passes (its comment gives the measurement)
+    b1 = frame_coords(first, "under", tip1, f1)
+    b2 = frame_coords(mirrored, "under", tip2, f2)
+    assert np.allclose(b2[:2], b1[:2], atol=1e-3)
+    assert 3e-3 <= b2[2] - (-b1[2]) <= 6e-3
+    # the loop goes the other way round the hook; the needle passes back (same roll)
+    assert first.states["over-hook"].params.direction == "back-to-front"
+    assert mirrored.states["over-hook"].params.direction == "front-to-back"
+    assert mirrored.states["slide-to-tip"].params.roll == first.states["slide-to-tip"].params.roll
+    # clear-stem: on the far side from the stitch, 20 mm or more off the stem, above the
+    # crossed tip and the tissue, the stitcher's shaft clear of the grasper's
+    c2 = frame_coords(mirrored, "clear-stem", tip2, f2)
+    assert c2[2] * k2[2] < 0 and np.hypot(c2[1], c2[2]) >= 20e-3 and c2[0] > 0
+    point = tip2 + np.asarray(mirrored.states["clear-stem"].params.target)
+    assert point[2] > 5e-3
+    u1 = (o1 - point) / np.linalg.norm(o1 - point)
+    up = f2[0]
+    gap = _segment_distance(point + JAW_REGION * u1, o1, tip2 + JAW_REGION * up, o2)
+    assert gap > 2.0 * SHAFT_RADIUS + 1e-3
+    # the grasper backs out along its (crossed) shaft
+    back = np.asarray(mirrored.states["pull-through"].params.target)
+    assert float(back @ f2[0]) == pytest.approx(6e-3, abs=0.3e-3)
+    assert float(np.linalg.norm(back - (back @ f2[0]) * f2[0])) < 0.3e-3
