@@ -26,7 +26,9 @@ belief) says ``square`` AND the knot binds the stitch (``through_tissue``).
 the stitched start (``pybullet-surgical-stitched`` unless ``--backend`` says otherwise);
 success is then ``succeeded``, a ``trefoil`` and ``through_tissue``. The rate is printed
 with its 95 % Wilson score interval (``suture_engine.report.sweep.wilson_interval``);
-every run's row goes to ``OUT/results.csv``.
+every run's row goes to ``OUT/results.csv``. A square knot on a ``*-stitched`` backend
+(``--backend pybullet-surgical-stitched``) starts from the stitched start as well
+(``--set stitch=false``).
 
 Usage::
 
@@ -239,6 +241,15 @@ def is_success(outcome: str, knot: str, bound: bool = True, *, single: bool = Fa
     return outcome == "succeeded" and knot == ("trefoil" if single else "square") and bound
 
 
+def job_sets(job: Job) -> list[str]:
+    """The run's ``--set`` values: a single throw or a square knot on the stitched start
+    (a ``*-stitched`` backend) skips the stitch; a square knot picks its algorithm."""
+    stitched = job.single or job.backend.endswith("-stitched")
+    return ([] if job.single else [f"algorithm={job.algorithm}"]) + (
+        ["stitch=false"] if stitched else []
+    )
+
+
 def run_one(job: Job) -> Row:
     """Run one job in a worker; any exception becomes an ``error`` row (a failure)."""
     from suture_engine.runtime.run import run_procedure
@@ -255,7 +266,7 @@ def run_one(job: Job) -> Row:
                 str(SINGLE % job.algorithm if job.single else PROCEDURE),
                 backend=job.backend,
                 seed=job.seed,
-                sets=["stitch=false"] if job.single else [f"algorithm={job.algorithm}"],
+                sets=job_sets(job),
                 out=job.out_dir,
                 max_time_s=job.max_time_s,
                 backend_options=job.options or None,

@@ -153,3 +153,18 @@ def test_accepted_options_read_the_backend_constructors() -> None:
     # (the stitched start's perturbations were silently dropped before)
     stitched = ks.accepted_options("pybullet-surgical-stitched")
     assert {"base_error", "friction_scale", "suture_stiffness_scale"} <= stitched
+
+
+@pytest.mark.parametrize(
+    ("backend", "single", "sets"),
+    [
+        ("pybullet-surgical-stitched", False, ["algorithm=2", "stitch=false"]),
+        ("pybullet-surgical", False, ["algorithm=2"]),
+        ("pybullet-surgical-stitched", True, ["stitch=false"]),
+    ],
+)
+def test_runs_on_the_stitched_start_skip_the_stitch(
+    backend: str, single: bool, sets: list[str]
+) -> None:
+    job = ks.Job(2, 0, 5, ks.Perturbation(), {}, backend, "x", 10.0, single)
+    assert ks.job_sets(job) == sets
