@@ -249,27 +249,35 @@ def test_grab_tail_closes_near_the_tail_end_then_lifts_it_clear_of_the_tissue(
     assert proc.states["lift-tail"].on["done"] == "extend-hook"
 
 
+def _run_on_thread(
+    tmp_path: Path, procedure: str, seed: int, sets: list[str], max_time_s: float
+) -> tuple[Any, Any]:
+    """Run a bundled procedure on the stitched start with the thread; (summary, knot entry)."""
+    import json
+
+    from suture_engine.runtime.run import run_procedure
+
+    run_procedure(
+        ROOT / "procedures" / procedure,
+        backend="pybullet-surgical-stitched",
+        seed=seed,
+        sets=sets,
+        out=tmp_path / "run",
+        max_time_s=max_time_s,
+    )
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    knot = summary["knot"][0] if isinstance(summary["knot"], list) else summary["knot"]
+    return summary, knot
+
+
 @pytest.mark.slow
 def test_algorithm_2_ties_a_simple_knot_on_the_surgical_backend(tmp_path: Path) -> None:
     """One throw on the thread, tissue and mounted tools, from the stitched start (seed 3):
     the run succeeds and the ground-truth classifier finds a trefoil in the simulated
     thread, with the true tension under the derived limit all along. (Not every seed
     ties it: see the README for the rate over seeds.)"""
-    import json
-
-    from suture_engine.runtime.run import run_procedure
-
-    run_procedure(
-        ROOT / "procedures" / "knot-algorithm-2.yaml",
-        backend="pybullet-surgical-stitched",
-        seed=3,
-        sets=["stitch=false"],
-        out=tmp_path / "run",
-        max_time_s=90,
-    )
-    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    summary, knot = _run_on_thread(tmp_path, "knot-algorithm-2.yaml", 3, ["stitch=false"], 90)
     assert summary["outcome"] == "succeeded"
-    knot = summary["knot"][0] if isinstance(summary["knot"], list) else summary["knot"]
     assert knot["type"] == "trefoil"
     assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
 
@@ -279,21 +287,10 @@ def test_a_second_throw_that_is_not_mirrored_ties_a_granny_knot(tmp_path: Path) 
     """The thesis' failure (4.4.1), from a whole procedure: the second throw passes the
     needle the same way as the first (`mirror=false`), and the ground-truth classifier
     finds a granny knot (determinant 9) in the simulated thread, seed 1."""
-    import json
-
-    from suture_engine.runtime.run import run_procedure
-
-    run_procedure(
-        ROOT / "procedures" / "square-knot.yaml",
-        backend="pybullet-surgical-stitched",
-        seed=1,
-        sets=["stitch=false", "mirror=false"],
-        out=tmp_path / "run",
-        max_time_s=220,
+    summary, knot = _run_on_thread(
+        tmp_path, "square-knot.yaml", 1, ["stitch=false", "mirror=false"], 220
     )
-    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
     assert summary["outcome"] == "succeeded"
-    knot = summary["knot"][0] if isinstance(summary["knot"], list) else summary["knot"]
     assert knot["type"] == "granny" and knot["determinant"] == 9
     assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
 
@@ -304,21 +301,8 @@ def test_algorithm_2_ties_a_square_knot_on_the_surgical_backend(tmp_path: Path) 
     its mirror image, and the ground-truth classifier finds a square knot (determinant 9,
     v3 0: two trefoils of opposite handedness) that binds the stitch, with the true
     tension under the derived limit all along."""
-    import json
-
-    from suture_engine.runtime.run import run_procedure
-
-    run_procedure(
-        ROOT / "procedures" / "square-knot.yaml",
-        backend="pybullet-surgical-stitched",
-        seed=1,
-        sets=["stitch=false"],
-        out=tmp_path / "run",
-        max_time_s=220,
-    )
-    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    summary, knot = _run_on_thread(tmp_path, "square-knot.yaml", 1, ["stitch=false"], 220)
     assert summary["outcome"] == "succeeded"
-    knot = summary["knot"][0] if isinstance(summary["knot"], list) else summary["knot"]
     assert knot["type"] == "square" and knot["determinant"] == 9 and knot["v3"] == 0
     assert knot["through_tissue"]
     assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
