@@ -105,7 +105,10 @@ def test_slide_to_tip_straddles_the_grasper_tip(mirror: bool, tail_mm: int) -> N
     assert proc.states["slide-to-tip"].on["done"] == "under"
     assert proc.states["under"].on["done"] == "pass-needle"
     assert proc.states["retract-hook"].on["done"] == "cinch"
-    assert proc.states["cinch"].on["done"] == "pull-through"
+    assert proc.states["cinch"].on["done"] == "release-hook"
+    assert proc.states["release-hook"].on["done"] == "pull-through"
+    # the hook is retracted before the cinch, except on a mirrored second throw (after it)
+    assert proc.states["retract-hook"].enabled and not proc.states["release-hook"].enabled
     assert proc.states["pull-through"].on["done"] == "tighten"
     # the cinch and the tighten draw the stitcher away from the grasper, above the tissue
     cinch = proc.states["cinch"].params
@@ -343,8 +346,11 @@ def test_the_needle_passes_back_on_a_mirrored_second_throw(
         assert proc.states[name].enabled is not second
     for name in ("hand-up", "clear-stem"):
         assert proc.states[name].enabled is second
-    # only the mirrored second throw carries the tail over first
+    # only the mirrored second throw carries the tail over first, and keeps the hook out
+    # through the cinch
     assert proc.states["cross-tail"].enabled is (second and mirror)
+    assert proc.states["retract-hook"].enabled is not (second and mirror)
+    assert proc.states["release-hook"].enabled is (second and mirror)
 
 
 def test_the_second_throw_comes_down_clear_of_the_grasper_stem() -> None:
