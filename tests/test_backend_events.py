@@ -4,7 +4,7 @@ backend's ``grip-slip`` (the thread slid through a grasper's jaws, pulled above 
 counted in the summary's ``grip_slips`` / ``grip_slip_mm``, and not compared by the
 replay.
 
-The physics rig is the one of ``tests/test_tools.py`` (a thread between two graspers'
+The physics rig is ``tests/grip_rig.py``'s (a thread between two graspers'
 jaws, the far one driven away), stepped through the backend's own physics step.
 """
 
@@ -27,35 +27,18 @@ from suture_engine.trace.reader import TraceReader
 
 LIMIT = 3.0
 """The held grasper's grip limit [N]."""
-SEGMENTS = 16
-LENGTH = 0.12
-HELD = 8
 
 
 def _rig_backend(limit: float) -> Any:
     """A PyBullet backend whose surgical scene is the two-grasper rig: ``endobot_1``'s
     jaws (limited) hold the thread mid-way, ``endobot_2``'s (unlimited) its far end."""
     p = pytest.importorskip("pybullet")
-    from backends.pybullet.backend import PyBulletBackend
-    from backends.pybullet.suture import Suture, SutureParams, configure_physics, straight_path
-    from backends.pybullet.tools import Grasper
+    from grip_rig import build_grip_rig
 
-    c = p.connect(p.DIRECT)
-    configure_physics(c)
-    params = SutureParams(length=LENGTH, n_segments=SEGMENTS, needle=False)
-    suture = Suture.create(c, straight_path((0.0, 0.0, 0.05), (1.0, 0.0, 0.0), LENGTH), params)
-    line = suture.centerline()
-    near = Grasper.create(
-        c,
-        "near",
-        tuple((line[HELD] + line[HELD + 1]) / 2),
-        suture=suture,
-        hook=False,
-        grip_limit=limit,
-    )
-    far = Grasper.create(c, "far", tuple((line[-2] + line[-1]) / 2), suture=suture, hook=False)
-    near.grip(HELD)
-    far.grip(SEGMENTS - 1)
+    from backends.pybullet.backend import PyBulletBackend
+
+    rig = build_grip_rig(p, limit)
+    c, suture, near, far = rig.client, rig.suture, rig.near, rig.far
     be = PyBulletBackend()
     be._p, be.client = p, c
     be.scene = SimpleNamespace(

@@ -11,12 +11,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Iterator
-from dataclasses import dataclass
 
 import numpy as np
 import pytest
 
 p = pytest.importorskip("pybullet")
+
+from grip_rig import HELD, LENGTH, SEGMENTS, GripRig, build_grip_rig  # noqa: E402
 
 from backends.pybullet.suture import (  # noqa: E402
     Suture,
@@ -28,20 +29,9 @@ from backends.pybullet.tools import Grasper, GripSlip  # noqa: E402
 
 LIMIT = 3.0
 """The held grasper's grip limit in these tests [N]."""
-SEGMENTS = 16
-LENGTH = 0.12
-SEG = LENGTH / SEGMENTS
-HELD = 8
-"""The capsule the limited grasper holds (mid-thread, so it can slide past several)."""
 
-
-@dataclass
-class Rig:
-    client: int
-    suture: Suture
-    near: Grasper
-    far: Grasper
-    direction: np.ndarray
+Rig = GripRig
+"""The rig (``tests/grip_rig.py``)."""
 
 
 @pytest.fixture
@@ -51,25 +41,9 @@ def make_rig() -> Iterator[object]:
     def make(
         limit: float, direction: tuple[float, float, float] = (1.0, 0.0, 0.0), held: int = HELD
     ) -> Rig:
-        c = p.connect(p.DIRECT)
-        clients.append(c)
-        configure_physics(c)
-        d = np.asarray(direction, float) / np.linalg.norm(direction)
-        params = SutureParams(length=LENGTH, n_segments=SEGMENTS, needle=False)
-        suture = Suture.create(c, straight_path((0.0, 0.0, 0.05), tuple(d), LENGTH), params)
-        line = suture.centerline()
-        near = Grasper.create(
-            c,
-            "near",
-            tuple((line[held] + line[held + 1]) / 2),
-            suture=suture,
-            hook=False,
-            grip_limit=limit,
-        )
-        far = Grasper.create(c, "far", tuple((line[-2] + line[-1]) / 2), suture=suture, hook=False)
-        near.grip(held)
-        far.grip(SEGMENTS - 1)
-        return Rig(c, suture, near, far, d)
+        rig = build_grip_rig(p, limit, direction, held)
+        clients.append(rig.client)
+        return rig
 
     yield make
     for c in clients:
