@@ -29,11 +29,15 @@ app = typer.Typer(
 def run(
     file: Annotated[Path, typer.Argument(help="The procedure file (YAML).")],
     backend: Annotated[
-        str,
+        str | None,
         typer.Option(
-            help="pybullet (default), replay (with --trace) or ideal (model only, for tests)."
+            help="pybullet (robots only), pybullet-surgical (with the thread, tissue and "
+            "tools), pybullet-surgical-stitched (the stitch already made), replay (with "
+            "--trace) or ideal (model only, for tests). Default: the procedure's `backend:`, "
+            "else pybullet.",
+            show_default=False,
         ),
-    ] = "pybullet",
+    ] = None,
     seed: Annotated[int, typer.Option(help="Random seed.")] = 0,
     set_: Annotated[
         list[str] | None,

@@ -227,3 +227,39 @@ def test_bundled_shared_control_circle_reports_table_6_4_rows(tmp_path: Path) ->
         e, f = m[f"row{row}_max_deviation_m"], m[f"row{row}_max_force_N"]
         assert e > 1e-4 and f > 0.1
         assert m[f"row{row}_stiffness_N_per_m"] == pytest.approx(f / e)
+
+
+def test_a_procedure_names_the_backend_a_plain_run_uses(tmp_path: Path) -> None:
+    """``backend:`` in the file is what ``suture run FILE`` uses; ``--backend`` overrides it."""
+    from suture_engine.trace.reader import TraceReader
+
+    text = (PROCS / "steps.yaml").read_text()
+    proc = tmp_path / "steps.yaml"
+    proc.write_text(text.replace("scene: scene.yaml", "backend: ideal\nscene: scene.yaml"))
+    (tmp_path / "scene.yaml").write_text((PROCS / "scene.yaml").read_text())
+    res = _suture("run", str(proc), "--out", str(tmp_path / "own"))
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert TraceReader(tmp_path / "own" / "trace.mcap").meta["backend"] == "ideal"
+    direct = run_procedure(proc, out=tmp_path / "api", max_time_s=5.0)
+    assert TraceReader(direct.trace).meta["backend"] == "ideal"
+    res = _suture("run", str(proc), "--backend", "pybullet", "--out", str(tmp_path / "given"))
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert TraceReader(tmp_path / "given" / "trace.mcap").meta["backend"] == "pybullet"
+    # without `backend:` the default stays pybullet
+    res = _suture("run", str(PROCS / "steps.yaml"), "--out", str(tmp_path / "plain"))
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert TraceReader(tmp_path / "plain" / "trace.mcap").meta["backend"] == "pybullet"
+
+
+def test_an_unknown_backend_in_the_file_is_a_located_error(tmp_path: Path) -> None:
+    text = (PROCS / "steps.yaml").read_text()
+    proc = tmp_path / "steps.yaml"
+    proc.write_text(text.replace("scene: scene.yaml", "backend: pybulet\nscene: scene.yaml"))
+    (tmp_path / "scene.yaml").write_text((PROCS / "scene.yaml").read_text())
+    for args in (["validate", str(proc)], ["run", str(proc), "--out", str(tmp_path / "x")]):
+        res = _suture(*args)
+        assert res.returncode != 0
+        out = res.stdout + res.stderr
+        assert f"{proc}:4" in out and "unknown-backend" in out and "pybullet" in out, out
+        assert "Traceback" not in out
+    assert not (tmp_path / "x" / "summary.json").exists()

@@ -230,7 +230,27 @@ def _load_document(
         initial=initial if isinstance(initial, str) else "",
         states=states,
         source=source,
+        backend=_backend(ctx, head, source) if not stack else None,
     )
+
+
+def _backend(ctx: _Context, head: _Head, source: SourceMap) -> str | None:
+    """The file's ``backend:``, checked against the registered backends."""
+    if head.backend is None:
+        return None
+    from backends.registry import available
+
+    names = available()
+    if head.backend not in names:
+        ctx.problems.append(
+            source.problem(
+                "unknown-backend",
+                f"no backend named {head.backend!r}; registered: {', '.join(names)}",
+                ("backend",),
+            )
+        )
+        return None
+    return head.backend
 
 
 def _validate_head(ctx: _Context, data: dict[str, Any], source: SourceMap) -> _Head | None:

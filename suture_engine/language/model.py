@@ -171,6 +171,10 @@ class ProcedureDocument(_Model):
     scene: str | dict[str, Any] | None = None
     """A scene file (relative to this file) or an inline scene; sub-procedures
     may leave it out and inherit their caller's."""
+    backend: str | None = None
+    """The backend ``suture run`` uses for this procedure when no ``--backend`` is given
+    (a registered name, e.g. ``pybullet-surgical`` for a procedure that needs the thread
+    and the tissue); without it, ``pybullet``. Read from the top-level file only."""
     includes_outside: bool = False
     """Allow ``use:`` and ``scene`` paths that leave this file's folder tree."""
     params: dict[str, ParamSpec] = Field(default_factory=dict)

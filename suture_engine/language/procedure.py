@@ -97,6 +97,8 @@ class Procedure:
         states: the states by name, in file order.
         source: positions of the file's nodes
             (:class:`suture_engine.language.source.SourceMap`), for located messages.
+        backend: the backend the file names for ``suture run`` without ``--backend``, or
+            None (``pybullet``).
     """
 
     name: str
@@ -109,3 +111,4 @@ class Procedure:
     initial: str
     states: Mapping[str, LoadedState]
     source: Any = None
+    backend: str | None = None

@@ -71,7 +71,7 @@ def _print_summary(summary: object, out_dir: Path | None) -> None:
 def run_command(
     file: Path,
     *,
-    backend: str,
+    backend: str | None,
     seed: int,
     sets: Sequence[str],
     out: Path | None,
@@ -84,7 +84,8 @@ def run_command(
     video_interval: float = 0.1,
     faults: Sequence[str] = (),
 ) -> int:
-    """``suture run``: returns the exit code.
+    """``suture run``: returns the exit code. ``backend`` None: the procedure's own
+    ``backend:``, else ``pybullet``.
 
     A ``--fault`` that does not parse, or that the backend cannot simulate, is a usage
     error (exit 2); one whose field the fault model refuses is invalid input (exit 1).
@@ -94,11 +95,18 @@ def run_command(
     from suture_engine.faults.support import FaultNotSupported
     from suture_engine.faults.syntax import FaultSyntaxError, FaultValueError
     from suture_engine.runtime.operator import OperatorFileMissing
-    from suture_engine.runtime.run import ProcedureLoadError, SetOverrideError, run_procedure
+    from suture_engine.runtime.run import (
+        ProcedureLoadError,
+        SetOverrideError,
+        declared_backend,
+        run_procedure,
+    )
 
     if not file.is_file():
         _error(f"{file}: no such file")
         return 2
+    if backend is None:
+        backend = declared_backend(file)
     if not 0.0 < max_time < float("inf"):
         _error(f"--max-time must be a positive, finite number of seconds, found {max_time:g}")
         return 2

@@ -203,6 +203,24 @@ OPERATOR_PARAM = "operator_file"
 """A ``str`` procedure parameter that names the procedure's own simulated operator."""
 
 
+DEFAULT_BACKEND = "pybullet"
+"""The backend of a run that names none and whose procedure names none."""
+
+
+def declared_backend(path: str | Path) -> str:
+    """The backend ``suture run FILE`` uses without ``--backend``: the file's top-level
+    ``backend:`` if it is a string, else :data:`DEFAULT_BACKEND`. A file that does not
+    read is left to the loader, which reports it located."""
+    import yaml
+
+    try:
+        data = yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        return DEFAULT_BACKEND
+    value = data.get("backend") if isinstance(data, dict) else None
+    return value if isinstance(value, str) else DEFAULT_BACKEND
+
+
 def declared_operator_file(path: str | Path, params: Mapping[str, Any]) -> Path | None:
     """The operator file a procedure brings with it, if any.
 
@@ -240,7 +258,7 @@ def _new_run_dir(root: Path, name: str, seed: int) -> Path:
 def run_procedure(
     path: str | Path,
     *,
-    backend: str = "pybullet",
+    backend: str | None = None,
     seed: int = 0,
     sets: Sequence[str] = (),
     out: str | Path | None = None,
@@ -257,7 +275,8 @@ def run_procedure(
 
     Args:
         path: the procedure file.
-        backend: backend name ("pybullet", "replay" needs ``backend_options['trace']``).
+        backend: backend name ("pybullet", "replay" needs ``backend_options['trace']``);
+            None: the procedure's ``backend:``, else "pybullet".
         seed: random seed.
         sets: ``name=value`` overrides of the procedure's parameters.
         out: output folder (None: a new folder under ``runs/``).
@@ -283,6 +302,8 @@ def run_procedure(
     from suture_engine.runtime.recorder import TraceRecorder
 
     proc, plan = load_plan(path, sets)
+    if backend is None:
+        backend = proc.backend or DEFAULT_BACKEND
     run_faults = _run_faults(proc, plan, backend, faults)
     operator: Any = None
     if operator_file is None and not interactive:
