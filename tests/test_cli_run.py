@@ -263,3 +263,21 @@ def test_an_unknown_backend_in_the_file_is_a_located_error(tmp_path: Path) -> No
         assert f"{proc}:4" in out and "unknown-backend" in out and "pybullet" in out, out
         assert "Traceback" not in out
     assert not (tmp_path / "x" / "summary.json").exists()
+
+
+def test_the_declared_backend_is_read_from_the_file_head_only(tmp_path: Path) -> None:
+    from suture_engine.runtime.run import DEFAULT_BACKEND, declared_backend
+
+    cases = {
+        "named.yaml": ("procedure: p\nbackend: pybullet-surgical\n", "pybullet-surgical"),
+        "none.yaml": ("procedure: p\n", DEFAULT_BACKEND),
+        "not-a-string.yaml": ("procedure: p\nbackend: [a, b]\n", DEFAULT_BACKEND),
+        "not-a-mapping.yaml": ("- a\n- b\n", DEFAULT_BACKEND),
+        "broken.yaml": ("procedure: [\n", DEFAULT_BACKEND),
+        "binary.yaml": (b"\xff\xfe\x00".decode("latin-1"), DEFAULT_BACKEND),
+    }
+    for name, (text, expected) in cases.items():
+        (tmp_path / name).write_text(text, encoding="latin-1")
+        assert declared_backend(tmp_path / name) == expected, name
+    assert declared_backend(tmp_path / "missing.yaml") == DEFAULT_BACKEND
+    assert DEFAULT_BACKEND == "pybullet"
