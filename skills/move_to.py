@@ -42,6 +42,11 @@ class MoveToParams(SkillParams):
     """Added to the target, in the world frame [m] (e.g. to stop above the tissue)."""
     roll: Angle | None = None
     """Tool roll q3 at the target [rad] (3.17); ``None`` keeps the current roll."""
+    roll_tolerance: Angle | None = Field(default=None, gt=0.0, le=math.radians(30.0))
+    """The roll error [rad] still accepted once the settling time is over (a roll joint
+    with more friction than its compensation knows ends a long roll short of its goal).
+    The move first waits, as without it, for the roll to come within
+    :attr:`MoveTo.ROLL_TOLERANCE` (3 deg). ``None``: no more than that."""
     speed: Speed = Field(default=0.01, gt=0.0, le=0.2)
     """Cruise speed of the tool tip [m/s]."""
     tolerance: Length = Field(default=0.5e-3, gt=0.0)
@@ -194,6 +199,9 @@ class MoveTo(Skill):
             return StepResult(command, SkillStatus.SUCCESS)
         settle = self.SETTLE_S + (0.0 if p.roll is None else self.ROLL_SETTLE_S)
         if t >= self._traj.duration + settle:
+            late = p.roll_tolerance
+            if late is not None and error <= p.tolerance and roll_error <= late:
+                return StepResult(command, SkillStatus.SUCCESS)
             return StepResult(
                 command,
                 SkillStatus.FAILURE,
