@@ -83,16 +83,21 @@ def test_states_follow_the_thesis_steps() -> None:
     assert order == [
         "stitch",
         "pick-strand",
+        "cross-tail",  # mirrored second throw only
+        "lower-tail",  # mirrored second throw only
+        "lay-tail",  # mirrored second throw only
         "present",
         "bend",
-        "hand-up",  # second throw only (when: mirror)
+        "hand-up",  # second throw only
         "loop",
         "lower-holder",  # first throw only
-        "lower-holder-taut",  # second throw only
+        "lower-holder-taut",  # second throw only, not the mirror image
+        "hold-back",  # mirrored second throw only
         "point-down",
-        "carry-tail",  # second throw only: the jaws still hold the tail
-        "grab-tail",  # first throw only
+        "carry-tail",  # second throw only, not mirrored: the jaws still hold the tail
+        "grab-tail",  # first throw, and the mirrored second throw
         "draw-tail",
+        "clear-jaws",  # mirrored second throw only
         "slide-off",
         "tighten",
     ]
@@ -186,8 +191,8 @@ def independent_gap(skill: Any) -> float:
 @pytest.mark.parametrize("mirror", [False, True])
 def test_a_full_turn_about_the_straight_stem_is_refused_before_moving(mirror: bool) -> None:
     skill = plan_loop(mirror=mirror)
-    # one turn; the mirror image one and a half (one left the strand off the arm)
-    assert skill.sweep == pytest.approx(3 * math.pi if mirror else 2 * math.pi)
+    # one turn, either way round
+    assert skill.sweep == pytest.approx(2 * math.pi)
     assert skill.shaft_gap < 1e-3
     assert independent_gap(skill) < 3e-3  # sampled: within its 1 mm spacing
     obs_q = skill.qs["endobot_1"]  # type: ignore[attr-defined]
@@ -275,3 +280,189 @@ def test_algorithm_3_ties_a_simple_knot_on_pybullet(tmp_path: Path) -> None:
     assert summary["knot"]["through_tissue"] is True
     assert summary["metrics"]["stitches"]["count"] == 1
     assert summary["metrics"]["peak_true_tension_N"] < 3.0
+
+
+def _arm_frame(proc: Any) -> dict[str, Any]:
+    """The bent arm where ``present`` and ``bend`` leave it, and the loop's frame about it,
+    rebuilt from the scene with scipy's rotations: the joint U, the arm's direction, the
+    loop's centre (``height`` along the arm), ``over`` (towards the holder's RCM point,
+    square to the arm) and ``front`` (arm x over), and both RCM points."""
+    from skills.wrap import BENT_ARM
+
+    points = proc.scene.tissue.points
+    spec2 = proc.scene.robots["endobot_2"]
+    rot2 = Rotation.from_euler("xyz", spec2.base.rpy)
+    base2 = (tuple(spec2.base.position), tuple(rot2.as_matrix().reshape(-1)))
+    present = proc.states["present"].params
+    tip = np.asarray(points[present.target]) + np.asarray(present.offset)
+    q = ik_world(tip, 0.0, base2)
+    frame = rot2 * Rotation.from_euler("XYZ", q[:3])
+    z = frame.as_matrix()[:, 2]
+    arm = (frame * Rotation.from_euler("XY", proc.states["bend"].params.angles)).apply([0, 0, 1])
+    joint = tip - BENT_ARM * z
+    centre = joint + proc.states["loop"].params.height * arm
+    holder_rcm = np.asarray(proc.scene.robots["endobot_1"].base.position)
+    over = holder_rcm - centre
+    over -= (over @ arm) * arm
+    over /= np.linalg.norm(over)
+    return {
+        "joint": joint,
+        "arm": arm,
+        "centre": centre,
+        "over": over,
+        "front": np.cross(arm, over),
+        "holder_rcm": holder_rcm,
+        "grasper_rcm": np.asarray(spec2.base.position),
+    }
+
+
+def _grasper_frame(proc: Any, state: str) -> tuple[Any, Any]:
+    """The grasper's tool tip where ``state`` puts it, and its frame there: along its shaft
+    (towards its RCM point), towards the holder's RCM point (square to the shaft), and
+    sideways (their cross product)."""
+    points = proc.scene.tissue.points
+    params = proc.states[state].params
+    tip = np.asarray(points[params.target]) + np.asarray(params.offset)
+    shaft = np.asarray(proc.scene.robots["endobot_2"].base.position) - tip
+    shaft /= np.linalg.norm(shaft)
+    towards = np.asarray(proc.scene.robots["endobot_1"].base.position) - tip
+    towards -= (towards @ shaft) * shaft
+    towards /= np.linalg.norm(towards)
+    return tip, np.array([shaft, towards, np.cross(shaft, towards)])
+
+
+def test_the_mirrored_second_throw_is_the_first_reflected_in_the_grasper_frame() -> None:
+    """A square knot's second throw (algorithm 3) is the first one's mirror image: every
+    point of the first throw, taken in the grasper's frame at its ``present`` pose, is
+    reflected (the sideways component reversed) into the frame of the mirrored throw's
+    ``present`` pose. That pose carries the arm over the first knot, so that the knot
+    lies behind and below the loop (the first throw's strand comes from in front and
+    below). Rebuilt from the scene: the holder's start (the stitched start's pull, 40 mm
+    over the exit), where lower-holder leaves it, and where the jaws take the tail."""
+    first: Any = load_procedure(PROC, params={"stitch": False})
+    granny: Any = load_procedure(PROC, params={"second": True, "stitch": False})
+    mirrored: Any = load_procedure(PROC, params={"mirror": True, "second": True, "stitch": False})
+    points = first.scene.tissue.points
+    tip1, frame1 = _grasper_frame(first, "present")
+    tip2, frame2 = _grasper_frame(mirrored, "present")
+
+    def reflected(point: Any) -> Any:
+        c = frame1 @ (point - tip1)
+        return tip2 + frame2.T @ (c * (1.0, 1.0, -1.0))
+
+    def target(proc: Any, state: str) -> Any:
+        params = proc.states[state].params
+        return np.asarray(points[params.target]) + np.asarray(params.offset)
+
+    f1 = _arm_frame(first)
+    start = np.asarray(points[first.params["exit"]]) + np.array([0.0, 0.0, 40e-3])
+    lowered = (
+        f1["centre"]
+        + first.states["loop"].params.radius * f1["front"]
+        + np.asarray(first.states["lower-holder"].params.target)
+    )
+    pairs = (("hand-up", start), ("hold-back", lowered))
+    for state, point in pairs:
+        assert np.linalg.norm(target(mirrored, state) - reflected(point)) < 0.1e-3, state
+    # where the tail's end is laid and taken again (grab-tail): the first throw's
+    # grab-tail reflected, then 10 mm further from the knot (along +y, so that the tail
+    # is laid straight) and as high as puts the bent jaws 3 mm over the pad, as in the
+    # first throw (their centre from scipy's rotations, as above); carried across 25 mm
+    # over the reflected place first (not through the first knot)
+    from skills.wrap import BENT_ARM
+
+    place = reflected(target(first, "grab-tail")) - np.array([0.0, 0.0, 4e-3])
+    above = place + np.array([0.0, 0.0, 25e-3])
+    assert np.allclose(target(mirrored, "cross-tail"), above, atol=0.1e-3)
+    grab = target(mirrored, "grab-tail")
+    assert np.allclose(grab[:2], place[:2] + np.array([0.0, 10e-3]), atol=0.1e-3)
+    assert abs(grab[2] - place[2]) < 0.5e-3
+    assert np.allclose(target(mirrored, "lower-tail"), grab)
+    spec = mirrored.scene.robots["endobot_2"]
+    rot = Rotation.from_euler("xyz", spec.base.rpy)
+    base = (tuple(spec.base.position), tuple(rot.as_matrix().reshape(-1)))
+    q = ik_world(grab, 0.0, base)
+    frame = rot * Rotation.from_euler("XYZ", q[:3])
+    z = frame.as_matrix()[:, 2]
+    arm = (frame * Rotation.from_euler("XY", mirrored.states["point-down"].params.angles)).apply(
+        [0, 0, 1]
+    )
+    jaws = grab - BENT_ARM * z + BENT_ARM * arm
+    assert jaws[2] == pytest.approx(3e-3, abs=0.3e-3)
+    # across the wound: beyond the exit, on the other side from the entry's tail
+    assert jaws[1] > np.asarray(points["exit_2"])[1] > 0.0 > np.asarray(points["entry_2"])[1]
+    # the first throw's points lie well to one side of the grasper's frame
+    assert (frame1 @ (start - tip1))[2] < -20e-3 and (frame1 @ (lowered - tip1))[2] < -5e-3
+    # the stitch lies in front of the first throw's loop; the first knot (tied round the
+    # tail, on the entry's side: measured at entry + (0, -3, 3) mm, seed 1) behind the
+    # mirrored one's, below it, 20-30 mm from its centre
+    f2 = _arm_frame(mirrored)
+    assert (np.asarray(points["knot_2"]) - f1["centre"]) @ f1["front"] > 20e-3
+    rel = np.asarray(points["entry_2"]) + np.array([0.0, -3e-3, 3e-3]) - f2["centre"]
+    assert rel @ f2["front"] < 0 and rel @ f2["over"] < -15e-3
+    assert 20e-3 < np.linalg.norm(rel) < 30e-3
+    # the loop the other way, one turn; the second throw without the mirror is the first
+    assert mirrored.states["loop"].params.direction == "back-to-front"
+    assert granny.states["loop"].params.direction == "front-to-back"
+    assert np.allclose(target(granny, "present"), target(first, "present"))
+    assert np.allclose(target(granny, "carry-tail"), target(first, "grab-tail"))
+    for name in ("cross-tail", "lower-tail", "lay-tail", "hold-back", "clear-jaws", "grab-tail"):
+        assert mirrored.states[name].enabled and not granny.states[name].enabled, name
+    assert granny.states["carry-tail"].enabled and not mirrored.states["carry-tail"].enabled
+    assert not mirrored.states["lower-holder-taut"].enabled
+    assert granny.states["lower-holder-taut"].enabled
+
+
+def test_the_mirrored_loop_keeps_the_shafts_apart() -> None:
+    """The mirrored loop, planned from the crossed present pose and the reflected
+    hand-up: the shafts stay 5 mm apart (sampled, not the skill's own figure)."""
+    proc: Any = load_procedure(PROC, params={"mirror": True, "second": True, "stitch": False})
+    scene = proc.scene
+    points = scene.tissue.points
+    bases = {}
+    for name, spec in scene.robots.items():
+        rot = Rotation.from_euler("xyz", spec.base.rpy).as_matrix()
+        bases[name] = (tuple(spec.base.position), tuple(rot.reshape(-1)))
+    hand = proc.states["hand-up"].params
+    present = proc.states["present"].params
+    qs = {
+        "endobot_1": ik_world(
+            np.asarray(points[hand.target]) + np.asarray(hand.offset), 0.0, bases["endobot_1"]
+        ),
+        "endobot_2": ik_world(
+            np.asarray(points[present.target]) + np.asarray(present.offset),
+            0.0,
+            bases["endobot_2"],
+        ),
+    }
+    tools = {
+        "endobot_1": ToolState("grasper", True),
+        "endobot_2": ToolState(
+            "bent-tip-grasper",
+            bend=tuple(proc.states["bend"].params.angles),  # type: ignore[arg-type]
+        ),
+    }
+    obs = Observation(
+        0,
+        0.0,
+        {n: RobotObservation(q, np.zeros(4), np.zeros(6), tools[n]) for n, q in qs.items()},
+        SceneGeometry(),
+    )
+    ctx = SkillContext("loop", dict(proc.roles), 1e-3, obs, scene, {}, bases)
+    skill = Wrap(WrapParams.model_validate(proc.states["loop"].params.model_dump()))
+    skill.start(ctx)
+    assert skill._failure == ""
+    o1 = np.asarray(bases["endobot_1"][0])
+    f = _arm_frame(proc)
+    from skills.wrap import BENT_JAW_END
+
+    arm_end = f["joint"] + BENT_JAW_END * f["arm"]
+    gap = min(
+        min(
+            sampled_gap(o1, tip_world(q, bases["endobot_1"]), f["grasper_rcm"], f["joint"], n=151),
+            sampled_gap(o1, tip_world(q, bases["endobot_1"]), f["joint"], arm_end, n=151),
+        )
+        for path in skill._paths
+        for q in path.table[::20]
+    )
+    assert gap > 5e-3
