@@ -134,16 +134,22 @@ def test_the_bent_jaws_close_on_the_tail_end() -> None:
     assert proc.states["tied"].outcome == "succeeded"
 
 
+def robot_bases(scene: Any) -> dict[str, tuple[Any, Any]]:
+    """Each robot's base (position, row-major rotation), from the scene's declared pose."""
+    bases = {}
+    for name, spec in scene.robots.items():
+        rot = Rotation.from_euler("xyz", spec.base.rpy).as_matrix()
+        bases[name] = (tuple(spec.base.position), tuple(rot.reshape(-1)))
+    return bases
+
+
 def plan_loop(sweep: float | None = None, mirror: bool = False, segment: str = "shaft") -> Wrap:
     """The ``loop`` state's wrap, planned with both tools where the earlier states leave
     them; ``segment="shaft"`` plans it about the straight stem instead of the bent arm."""
     proc: Any = load_procedure(PROC, params={"mirror": mirror, "pick_strand": True})
     scene = proc.scene
     points = scene.tissue.points
-    bases = {}
-    for name, spec in scene.robots.items():
-        rot = Rotation.from_euler("xyz", spec.base.rpy).as_matrix()
-        bases[name] = (tuple(spec.base.position), tuple(rot.reshape(-1)))
+    bases = robot_bases(scene)
     pick = proc.states["pick-strand"].params
     present = proc.states["present"].params
     holder_tip = np.asarray(points[pick.target]) + np.asarray(pick.offset)
@@ -419,10 +425,7 @@ def test_the_mirrored_loop_keeps_the_shafts_apart() -> None:
     proc: Any = load_procedure(PROC, params={"mirror": True, "second": True, "stitch": False})
     scene = proc.scene
     points = scene.tissue.points
-    bases = {}
-    for name, spec in scene.robots.items():
-        rot = Rotation.from_euler("xyz", spec.base.rpy).as_matrix()
-        bases[name] = (tuple(spec.base.position), tuple(rot.reshape(-1)))
+    bases = robot_bases(scene)
     hand = proc.states["hand-up"].params
     present = proc.states["present"].params
     qs = {
