@@ -91,7 +91,9 @@ def test_graph_mermaid_labels_states_with_skill_and_invariant() -> None:
     assert text.startswith("stateDiagram")
     assert "[*] --> s0" in text
     assert "skill pass-needle" in text and "invariant tension <= 3 N" in text
-    assert "s1 --> s2: done" in text and "s2 --> [*]" in text
+    # bite, then the strand laid out (a guarded move: done or not, on to lowering)
+    assert "s1 --> s2: done" in text and "s2 --> s3: done" in text and "s2 --> s3: failed" in text
+    assert "s4 --> [*]" in text
     assert "Lock" in text
 
 

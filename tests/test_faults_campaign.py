@@ -241,8 +241,8 @@ def test_the_benchmark_sets_each_procedure_its_limit_from_its_baseline() -> None
 
     rows = {"stitch.yaml": base("stitch.yaml", 17.15), "square-knot.yaml": base("sq", 109.65)}
     stitch, square = bench.targets(procs, "pybullet", rows, None)
-    # stitch: timeouts 15 s + 30 s; 17.15 + 45 = 62.15 -> 70 s
-    assert (stitch.max_time_s, stitch.horizon_s) == (70.0, 17.1)
+    # stitch: timeouts 15 s + 30 s + 40 s + 20 s; 17.15 + 105 = 122.15 -> 130 s
+    assert (stitch.max_time_s, stitch.horizon_s) == (130.0, 17.1)
     _, square_timeouts = bench.plan_steps(procs[1])
     assert square.max_time_s >= 109.65 + square_timeouts
     assert square.max_time_s - (109.65 + square_timeouts) < 10.0

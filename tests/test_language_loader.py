@@ -45,7 +45,8 @@ def test_quantities_are_si_after_load() -> None:
     assert proc.params["tail"] == pytest.approx(0.030)
     bite = proc.states["bite"]
     assert bite.params is not None
-    assert bite.params.pull_length == pytest.approx(0.030)  # type: ignore[attr-defined]
+    # the 120 mm bench thread less the 30 mm tail less 38 mm, all in metres
+    assert bite.params.pull_length == pytest.approx(0.120 - 0.030 - 0.038)  # type: ignore[attr-defined]
     assert bite.invariant is not None and bite.invariant.max_tension == pytest.approx(3.0)
     assert bite.timeout == pytest.approx(30.0)
     assert proc.states["approach"].params.offset == pytest.approx((0, 0, 0.01))  # type: ignore[union-attr]

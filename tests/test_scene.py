@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 import yaml
 
-from backends.pybullet.scene import SceneError, build_scene, stitch_points
+from backends.pybullet.scene import SceneError, build_scene, needle_path, stitch_points
 from backends.pybullet.tools import BentTipGrasper, Grasper, Stitcher
 from suture_engine.language.scene import Scene as SceneModel
 
@@ -54,7 +54,8 @@ def test_model_scene_robots_at_base_poses_with_tools_on_their_tool_links() -> No
         # Moving a robot moves its tool.
         before = np.asarray(scene.tools["endobot_2"].pose()[0])
         q = scene.hold["endobot_2"]
-        scene.hold["endobot_2"] = (q[0], q[1], q[2], q[3] + 0.02)
+        # out, away from the pad (its jaws hold the tail end on it in the tail-held start)
+        scene.hold["endobot_2"] = (q[0], q[1], q[2], q[3] - 0.02)
         for _ in range(1000):
             scene.step()
         after = np.asarray(scene.tools["endobot_2"].pose()[0])
@@ -211,6 +212,96 @@ def test_stitched_start_runs_the_thread_through_the_channel(tail: float) -> None
         assert len(tissue.inside) >= 1
     finally:
         scene.close()
+
+
+def test_tail_held_start_holds_the_tail_end_out_of_the_entry_point_and_the_needle() -> None:
+    """The tail-held start: the needle sits in the stitcher's jaw 0, the hook grasper's jaws
+    hold the thread's free end 30 mm out of the entry point (away from the exit), and the
+    thread lies on the surface from there towards the entry point, then to below the
+    needle and up to it, as long as the route. 1 s of settling moves nothing much."""
+    import pybullet as p
+
+    model = _model("bench-square.yaml")
+    scene = build_scene(model, seed=0, start="tail-held")
+    try:
+        tissue = scene.tissue
+        assert tissue is not None
+        entry, exit_ = np.asarray(tissue.entry), np.asarray(tissue.exit)
+        out = (entry - exit_) / np.linalg.norm(entry - exit_)
+        stitcher, grasper = scene.tools["endobot_1"], scene.tools["endobot_2"]
+        assert isinstance(stitcher, Stitcher) and isinstance(grasper, Grasper)
+        assert grasper.held_segment == 0
+        for settled in (False, True):
+            line = scene.suture.centerline()
+            jaw, _ = p.getBasePositionAndOrientation(stitcher.jaws[0], physicsClientId=scene.client)
+            assert np.linalg.norm(line[-1] - np.asarray(jaw)) < 1e-3, settled
+            # the free end lies 30 mm out of the entry point, on the surface (laid from the
+            # needle's end, the capsules cut the route's corners: within one capsule)
+            seg = scene.suture.params.segment_length
+            assert np.linalg.norm(line[0] - (entry + 0.03 * out)) < seg, settled
+            jaws, _ = grasper.pose()
+            assert np.linalg.norm(np.asarray(jaws) - (line[0] + line[1]) / 2) < 2e-3, settled
+            # capsules tip to tip: the route is the thread's length
+            assert np.linalg.norm(np.diff(line, axis=0), axis=1).sum() == pytest.approx(
+                model.suture.length, rel=0.03
+            )
+            # from the free end towards the entry point, the thread lies on the tail's line
+            first = line[:3]
+            along = (first - entry) @ out
+            assert np.all(np.diff(along) < 0) and along.min() > 0.009, settled
+            assert np.abs((first - entry - np.outer(along, out))[:, :2]).max() < 1.5e-3
+            assert np.all(np.abs(line[: len(line) // 2, 2]) < 1.5e-3), settled
+            for _ in range(1000 if not settled else 0):
+                scene.step()
+                assert scene.suture.stretch() < 0.03
+    finally:
+        scene.close()
+
+
+@pytest.mark.parametrize("length", [0.10, 0.12, 0.14, 0.15, 0.16, 0.30])
+@pytest.mark.parametrize("jaw_mm", [(-72.0, -51.0, 37.5), (-74.0, -50.0, 37.0)])
+def test_needle_path_lays_any_thread_from_the_held_end_to_the_jaw(
+    length: float, jaw_mm: tuple[float, float, float]
+) -> None:
+    """Short threads rise to the needle from the surface, long ones lie on it (with the
+    bend moved sideways when longer than the surface route): each capsule chain is the
+    thread's length, ends in the jaw, starts on the surface near the held point 30 mm out
+    of the entry point, away from the exit, and never dips below the surface."""
+    entry, exit_, normal = (
+        np.array([0, -4e-3, 0.0]),
+        np.array([0, 4e-3, 0.0]),
+        np.array([0, 0, 1.0]),
+    )
+    jaw, seg, lift = np.asarray(jaw_mm) * 1e-3, 3e-3, 1.4e-3
+    path = needle_path(entry, exit_, normal, lift, 0.03, jaw, np.array([-6e-3, 0, 0]), length, seg)
+    chords = np.linalg.norm(np.diff(path, axis=0), axis=1)
+    assert np.allclose(chords, seg, rtol=1e-6)
+    assert len(chords) * seg == pytest.approx(length, abs=seg / 2)
+    assert np.linalg.norm(path[-1] - jaw) < 1e-9
+    held = entry + np.array([0, -0.03, lift])
+    assert np.linalg.norm(path[0] - held) < 5e-3
+    assert path[0][2] == pytest.approx(lift) and path[:, 2].min() > lift - 1e-9
+
+
+def test_needle_path_refuses_a_thread_too_short_to_reach_the_jaw() -> None:
+    entry, exit_, normal = (
+        np.array([0, -4e-3, 0.0]),
+        np.array([0, 4e-3, 0.0]),
+        np.array([0, 0, 1.0]),
+    )
+    with pytest.raises(SceneError) as err:
+        needle_path(
+            entry,
+            exit_,
+            normal,
+            1.4e-3,
+            0.03,
+            np.array([-0.072, -0.051, 0.0375]),
+            np.array([-6e-3, 0, 0]),
+            0.05,
+            3e-3,
+        )
+    assert err.value.field == "suture.length"
 
 
 def test_stitched_start_refuses_what_it_cannot_lay() -> None:

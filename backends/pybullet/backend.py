@@ -131,11 +131,14 @@ class PyBulletBackend:
             gravity model, so the base-sensor tension estimate of a robots-only
             procedure would read it as tension). None: when the scene declares them.
         start: the surgical scene's start state with a stitcher: ``"needle"`` (the thread
-            hangs from the needle in the stitcher's jaw), ``"stitched"`` (the stitch is
+            hangs from the needle in the stitcher's jaw), ``"tail-held"`` (the needle in
+            the stitcher's jaw, the thread's free end held by the first grasper ``tail``
+            out of the entry point), ``"stitched"`` (the stitch is
             made: the thread runs through the tissue from entry to exit, ``tail`` lies out
             of the entry point on the surface, the rest runs from the exit to the needle
             in the stitcher's jaw), or None for the scene's ``suture.start``.
-        tail: the stitched start's tail out of the entry point [m].
+        tail: the tail out of the entry point [m]: the stitched start's, or where the
+            tail-held start's grasper holds the thread's free end.
         stitch: names of the stitch's entry and exit points; None: ``entry``/``exit``,
             else the numbered pair nearest the wound's middle
             (:func:`backends.pybullet.scene.stitch_points`).
@@ -217,6 +220,28 @@ class PyBulletBackend:
             for name, spec in robots.items()
         }
 
+    def _tail_held_q(self, scene: Any) -> dict[str, tuple[float, float, float, float]]:
+        """Without the thread, the start joints of the surgical tail-held start's assistant:
+        the first grasper where it would hold the thread's free end, so that a procedure
+        starts from the same poses on both backends. Empty when the scene has no stitch
+        to make (no tissue, suture or stitcher) or starts otherwise."""
+        from backends.pybullet.scene import _pulled_out_joints, model_needle_start_grip
+
+        robots = getattr(scene, "robots", None) or {}
+        suture = getattr(scene, "suture", None)
+        tools = {name: str(spec.tool) for name, spec in robots.items()}
+        start = self.start or getattr(suture, "start", None) or "needle"
+        if getattr(scene, "tissue", None) is None or suture is None or start != "tail-held":
+            return {}
+        if "stitcher" not in tools.values():
+            return {}
+        assistant = next((n for n in sorted(tools) if "grasper" in tools[n]), None)
+        if assistant is None:
+            return {}
+        grip = model_needle_start_grip(scene, self.stitch, self.tail)
+        q = _pulled_out_joints(robots[assistant], grip)
+        return {} if q is None else {assistant: q}
+
     def reset(self, scene: Any, seed: int) -> Measurement:
         """Connect, build the robots at the scene's base poses, measure once.
 
@@ -251,6 +276,8 @@ class PyBulletBackend:
                 self._tools[name] = self._start_bend(self._measured_tool(name, tool))
                 base_positions[name] = (float(pos[0]), float(pos[1]), float(pos[2]))
         else:
+            for name, q in self._tail_held_q(scene).items():
+                self._start_q.setdefault(name, q)
             client = p.connect(p.GUI if self.gui else p.DIRECT)
             if client < 0:
                 raise BackendError(self.name, "cannot connect to PyBullet")

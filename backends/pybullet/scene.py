@@ -55,9 +55,13 @@ __all__ = [
     "SceneError",
     "build_scene",
     "channel_depth",
+    "model_needle_start_grip",
+    "needle_path",
+    "needle_start_grip",
     "pull_ends",
     "stitch_points",
     "stitched_path",
+    "suture_params",
 ]
 
 DEFAULT_SCENE: dict[str, Any] = {
@@ -105,7 +109,7 @@ exit point along the tissue normal, l_d [m]: the stitcher starts there, holding 
 with the thread running from the exit to its jaw."""
 """Start joints of the robots [rad, rad, rad, m]."""
 
-START_STATES = ("needle", "stitched")
+START_STATES = ("needle", "tail-held", "stitched")
 """Start states of a scene with a stitcher: the thread hangs from the needle in the
 stitcher's jaw, or the stitch is already made (:func:`stitched_path`)."""
 DEFAULT_TAIL = 0.03
@@ -207,11 +211,14 @@ def build_scene(
             by construction along a hand-built curve (:func:`knotted_path`).
         seed: seeds the scene's random generator (sensor noise, perturbations); the physics
             itself is deterministic.
-        start: with a scene model and a stitcher: ``"needle"`` (the thread hangs from the
-            needle in the stitcher's jaw), ``"stitched"`` (the stitch is already made: see
-            :func:`stitched_path`), or None for the model's ``suture.start`` (default
-            ``"needle"``).
-        tail: with ``start="stitched"``: the tail left out of the entry point [m].
+        start: with a scene model and a stitcher: ``"needle"`` (the thread hangs from
+            the needle in the stitcher's jaw), ``"tail-held"`` (the needle in the
+            stitcher's jaw, the thread on the surface from a free end ``tail`` out of the
+            entry point, held there by the first grasper: :func:`needle_path`),
+            ``"stitched"`` (the stitch is already made: see :func:`stitched_path`), or
+            None for the model's ``suture.start`` (default ``"needle"``).
+        tail: the tail out of the entry point [m]: left by the stitch (``"stitched"``),
+            or where the thread's free end is held (``"tail-held"``).
         stitch: names of the bite's entry and exit points; None for :func:`stitch_points`'
             choice.
         base_error: with a scene model: robot name -> displacement [m] of the robot's
@@ -354,6 +361,143 @@ def channel_depth(bite: float) -> float:
 
 def _polyline_length(points: Any) -> float:
     return float(np.linalg.norm(np.diff(np.asarray(points, float), axis=0), axis=1).sum())
+
+
+NEEDLE_TAIL_BEND = 0.01
+"""In the tail-held start, how far out of the entry point the thread leaves the tail's line
+for the needle [m] (see :func:`needle_path`)."""
+
+
+def needle_path(
+    entry: Any,
+    exit_: Any,
+    normal: Any,
+    lift: float,
+    tail: float,
+    jaw: Any,
+    leg: Any,
+    length: float,
+    segment: float,
+) -> Any:
+    """The polyline of a thread hanging from the needle before the stitch [m] (free end
+    first), its free end held by the assistant grasper ``tail`` [m] out of the entry
+    point (away from the exit), where the stitch will leave its tail.
+
+    From the free end the thread lies on the surface (``lift`` [m] above it) towards the
+    entry point, leaves that line ``NEEDLE_TAIL_BEND`` or more out of it and runs on the
+    surface to below the needle, then up to it (a thread too short for that rises
+    straight from the line to the needle): its last ``leg`` [m] runs straight into
+    the jaw at ``jaw`` (the direction the needle is laid in). The bend is placed so that
+    the route is as long as the thread. Laid capsule tip to capsule tip from the needle's
+    end, so that the needle sits in its jaw.
+
+    A thread too long for the surface route (the bend at ``NEEDLE_TAIL_BEND``) has its
+    bend moved sideways on the surface, away from below the needle; one too short to lie
+    to below the needle runs on the surface part of the way from the bend, then up.
+
+    The bite and the pull (4.3) draw the thread into the entry point; the held end keeps
+    the tail on its line, straight out of the entry point, where the knot procedures
+    take it (the robots do not measure the thread).
+
+    Raises:
+        SceneError: the thread is too short for this route.
+    """
+    n = np.asarray(normal, float)
+    entry = np.asarray(entry, float)
+    out = entry - np.asarray(exit_, float)
+    out = out - n * float(n @ out)
+    out = out / np.linalg.norm(out)
+    jaw = np.asarray(jaw, float)
+    bend = jaw + np.asarray(leg, float)
+    below = bend - n * float(n @ (bend - entry)) + n * lift
+    end = entry + n * lift + out * tail
+
+    def route(a: float, on_surface: bool) -> Any:
+        """The route with the bend ``a`` [m] out of the entry point, on the surface to
+        below the needle, or straight up from the bend to the needle."""
+        corner = [entry + n * lift + out * a] if a < tail - 1e-6 else []
+        return np.vstack([end, *corner, *([below] if on_surface else []), bend, jaw])
+
+    def partway(t: float) -> Any:
+        """From the bend at ``NEEDLE_TAIL_BEND`` on the surface the fraction ``t`` of the
+        way to below the needle, then up to it (between the two routes above)."""
+        corner = entry + n * lift + out * NEEDLE_TAIL_BEND
+        return np.vstack([end, corner, corner + t * (below - corner), bend, jaw])
+
+    def detour(w: float) -> Any:
+        """The surface route with its bend moved ``w`` [m] sideways, away from below the
+        needle (a thread longer than the surface route)."""
+        corner = entry + n * lift + out * NEEDLE_TAIL_BEND
+        side = np.cross(n, out)
+        if float(side @ (below - corner)) > 0.0:
+            side = -side
+        return np.vstack([end, corner + side * w, below, bend, jaw])
+
+    def solve(family: Any, lo: float, hi: float) -> Any:
+        """The member of ``family`` as long as the thread (its route grows longer with
+        its parameter, from ``lo`` to ``hi``)."""
+        for _ in range(60):
+            mid = (lo + hi) / 2
+            lo, hi = (mid, hi) if _polyline_length(family(mid)) < length else (lo, mid)
+        return family(hi)
+
+    bend_at, held_at = NEEDLE_TAIL_BEND, tail
+    air = (lambda u: route(bend_at + held_at - u, False), bend_at, held_at)
+    surface = (lambda u: route(bend_at + held_at - u, True), bend_at, held_at)
+
+    def spans(family: Any) -> bool:
+        """The thread is between the lengths of the family's two ends."""
+        f, lo, hi = family
+        return bool(_polyline_length(f(lo)) <= length <= _polyline_length(f(hi)))
+
+    if length < _polyline_length(air[0](air[1])):
+        shortest = _polyline_length(air[0](air[1]))
+        raise SceneError("suture.length", length, [f">= {shortest:.3g} m"])
+    # On the surface to below the needle where the thread allows, else straight up from
+    # the bend, else part of the way and up; the sideways bend only for what is left. Air,
+    # part-way and sideways follow one another, from the shortest route to the longest.
+    candidates = [surface, air, (partway, 0.0, 1.0), (detour, 0.0, length)]
+    family = next((f for f in candidates if spans(f)), candidates[-1])
+    path = solve(*family)[::-1]
+    return _resample(path, round(length / segment), segment)[::-1]
+
+
+def needle_start_grip(
+    entry: Any, exit_: Any, normal: Any, lift: float, segment: float, tail: float
+) -> Any:
+    """Where the first grasper's jaws hold the thread's free end in the tail-held start [m]:
+    on the end capsule (``segment`` [m] long, its axis ``lift`` [m] above the surface),
+    1 mm above its axis, with the free end ``tail`` [m] out of the entry point, away from
+    the exit. Geometry alone: a backend without a thread starts the grasper here, about
+    where one with it does (:func:`needle_path`'s chain, laid from the needle, cuts the
+    route's corners, so its free end lies up to a few mm further out)."""
+    n = np.asarray(normal, float)
+    n = n / np.linalg.norm(n)
+    entry = np.asarray(entry, float)
+    out = entry - np.asarray(exit_, float)
+    out = out - n * float(n @ out)
+    out = out / np.linalg.norm(out)
+    return entry + n * (lift + 1e-3) + out * (tail - segment / 2)
+
+
+def model_needle_start_grip(
+    model: Any, stitch: tuple[str, str] | None = None, tail: float = DEFAULT_TAIL
+) -> Any:
+    """:func:`needle_start_grip` for a scene model (its stitch points and thread)."""
+    entry, exit_ = stitch_points(model.tissue, stitch)
+    params = suture_params(model, 0.0)
+    lift = params.collision_radius + 0.5e-3
+    return needle_start_grip(entry, exit_, model.tissue.normal, lift, params.segment_length, tail)
+
+
+def suture_params(model: Any, bending_stiffness: float) -> SutureParams:
+    """The simulated thread of a scene model (at least 40 capsules)."""
+    return SutureParams(
+        length=float(model.suture.length),
+        n_segments=max(40, round(model.suture.length / (model.suture.segment or 7.5e-3))),
+        diameter=float(model.suture.diameter),
+        bending_stiffness=bending_stiffness,
+    )
 
 
 def stitched_path(
@@ -544,26 +688,25 @@ def _build_model(
         depth=channel_depth(float(np.linalg.norm(exit_ - entry))),
         size=PAD_SIZE,
     )
-    params = SutureParams(
-        length=float(model.suture.length),
-        n_segments=max(40, round(model.suture.length / (model.suture.segment or 7.5e-3))),
-        diameter=float(model.suture.diameter),
-        bending_stiffness=bending_stiffness,
-    )
+    params = suture_params(model, bending_stiffness)
     stitchers = [n for n, spec in sorted(model.robots.items()) if spec.tool == "stitcher"]
     holders = [n for n, spec in sorted(model.robots.items()) if spec.tool == "grasper"]
     # Without a stitcher, the stitched start puts the needle's end of the thread in the
     # jaws of the first plain grasper (the needle holder, algorithm 3).
     holder = holders[0] if not stitchers and start == "stitched" and holders else None
     lift = normal * (params.collision_radius + 0.5e-3)
+    holds_tail = None
     threaded = not stitchers or start == "stitched"
     carrier = stitchers[0] if stitchers else holder
-    if carrier is not None and start == "stitched":
-        # where the stitch's pull (4.3) ends: the tip l_d along the normal from the exit
-        q_pulled = _pulled_out_joints(model.robots[carrier], exit_ + normal * STITCHED_PULL)
-        if q_pulled is not None:
-            robots[carrier].reset(q_pulled)
-            hold[carrier] = q_pulled
+    if carrier is not None and start != "needle":
+        if start == "stitched":
+            # where the stitch's pull (4.3) ends: the tip l_d along the normal from the exit
+            q_start = _pulled_out_joints(model.robots[carrier], exit_ + normal * STITCHED_PULL)
+        else:
+            q_start = None
+        if q_start is not None:
+            robots[carrier].reset(q_start)
+            hold[carrier] = q_start
         tip, orn = robots[carrier].true_tool_pose()
         jaw, _ = p.multiplyTransforms(
             [float(v) for v in tip],
@@ -573,16 +716,42 @@ def _build_model(
         )
         # The thread leaves jaw 0 outwards (along the tip's -x), clear of the shaft.
         axis = np.array(p.getMatrixFromQuaternion([float(v) for v in orn])).reshape(3, 3)[:, 0]
-        path = stitched_path(
-            tissue.channel,
-            normal,
-            float(np.linalg.norm(lift)),
-            tail,
-            np.asarray(jaw, float),
-            axis,
-            params.length,
-            params.segment_length,
-        )
+        if start == "stitched":
+            path = stitched_path(
+                tissue.channel,
+                normal,
+                float(np.linalg.norm(lift)),
+                tail,
+                np.asarray(jaw, float),
+                axis,
+                params.length,
+                params.segment_length,
+            )
+        else:
+            path = needle_path(
+                entry,
+                exit_,
+                normal,
+                float(np.linalg.norm(lift)),
+                tail,
+                np.asarray(jaw, float),
+                -axis * 2 * params.segment_length,
+                params.length,
+                params.segment_length,
+            )
+            # The assistant grasper holds the free end (its jaws on the end capsule).
+            assistant = next(
+                (n for n, s in sorted(model.robots.items()) if "grasper" in s.tool), None
+            )
+            if assistant is not None:
+                # on the end capsule as laid (the chain cuts the route's corners, so its
+                # end lies up to a few mm from needle_start_grip's nominal point)
+                grip = (path[0] + path[1]) / 2 + normal * 1e-3
+                q_held = _pulled_out_joints(model.robots[assistant], grip)
+                if q_held is not None:
+                    robots[assistant].reset(q_held)
+                    hold[assistant] = q_held
+                    holds_tail = assistant
     elif stitchers:
         tip, _ = robots[stitchers[0]].true_tool_pose()
         tip = np.asarray(tip, float)
@@ -630,7 +799,7 @@ def _build_model(
                 pos,
                 quat,
                 needle_body=suture.needle_body,
-                place_needle=start != "stitched",
+                place_needle=start == "needle",
             )
         elif spec.tool == "bent-tip-grasper":
             tool = BentTipGrasper.create(
@@ -651,6 +820,8 @@ def _build_model(
             )
             if name == holder:
                 tool.grip(len(suture.bodies) - 1)
+            if name == holds_tail:
+                tool.grip(0)
         tool.mount(robot.body_id, robot.tool_link)
         if isinstance(tool, Stitcher):
             tool.collide_with(suture)

@@ -204,11 +204,16 @@ class Suture(_Model):
     """USP size (Table 7.1)."""
     length: Length = Field(gt=0.0)
     """Length of the suture [m]."""
-    start: Literal["needle", "stitched"] | None = None
+    start: Literal["needle", "tail-held", "stitched"] | None = None
     """Start state in a simulator with a stitcher: ``needle`` (the thread hangs from the
-    needle in the stitcher's jaw; the default) or ``stitched`` (the stitch is already made:
-    the thread runs through the tissue with a 30 mm tail out of the entry point, and on
-    from the exit point to the needle in the stitcher's jaw)."""
+    needle in the stitcher's jaw; the default), ``tail-held`` (the needle is in the
+    stitcher's jaw and the thread lies on the tissue surface from a free end 30 mm out of
+    the entry point, away from the exit, to below the needle; the scene's first grasper,
+    as an assistant would, holds that free end, so that the stitch leaves the tail
+    straight where the knot procedures take it; a simulator without the thread starts
+    that grasper there too) or ``stitched`` (the stitch is already made: the thread runs
+    through the tissue with a 30 mm tail out of the entry point, and on from the exit
+    point to the needle in the stitcher's jaw)."""
     segment: Length | None = Field(default=None, ge=1e-3, le=20e-3)
     """Length of one simulated capsule of the thread [m] (simulators that model the thread
     as a chain; at least 40 capsules are used). ``None``: 7.5 mm. Shorter capsules bend
