@@ -143,6 +143,22 @@ def test_stitch_approach_timeout_covers_its_move_from_the_start_pose() -> None:
     assert state.timeout >= duration + 1.0  # 1 s for move-to to settle
 
 
+def test_stitch_lay_and_lower_timeouts_cover_their_moves() -> None:
+    """The strand is laid from where the pull ends (l_d along the normal from the exit)
+    to its goal, then the needle comes back over the exit: each step's timeout covers
+    its whole move (a guarded lay may stop earlier)."""
+    proc: Any = load_procedure(ROOT / "procedures" / "stitch.yaml")
+    exit_ = np.asarray(proc.scene.tissue.points["exit_2"], dtype=float)
+    normal = np.asarray(proc.scene.tissue.normal, dtype=float)
+    pulled = exit_ + normal * proc.states["bite"].params.pull_length
+    lay, lower = proc.states["lay-strand"], proc.states["lower"]
+    laid = exit_ + np.asarray(lay.params.offset)
+    back = exit_ + np.asarray(lower.params.offset)
+    for state, a, b in ((lay, pulled, laid), (lower, laid, back)):
+        d = float(np.linalg.norm(b - a))
+        assert state.timeout >= _min_jerk_duration(d, state.params.speed) + 1.0, state
+
+
 def test_tighten_and_slide_timeouts_cover_their_moves() -> None:
     proc: Any = load_procedure(ROOT / "procedures" / "knot-algorithm-2.yaml")
     for name in ("cinch", "tighten"):
