@@ -225,7 +225,7 @@ class PyBulletBackend:
         the first grasper where it would hold the thread's free end, so that a procedure
         starts from the same poses on both backends. Empty when the scene has no stitch
         to make (no tissue, suture or stitcher) or starts otherwise."""
-        from backends.pybullet.scene import _pulled_out_joints, model_needle_start_grip
+        from backends.pybullet.scene import _pulled_out_joints, tail_held_grip
 
         robots = getattr(scene, "robots", None) or {}
         suture = getattr(scene, "suture", None)
@@ -238,7 +238,7 @@ class PyBulletBackend:
         assistant = next((n for n in sorted(tools) if "grasper" in tools[n]), None)
         if assistant is None:
             return {}
-        grip = model_needle_start_grip(scene, self.stitch, self.tail)
+        grip = tail_held_grip(scene, self.stitch, self.tail)
         q = _pulled_out_joints(robots[assistant], grip)
         return {} if q is None else {assistant: q}
 

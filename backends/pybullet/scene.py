@@ -55,13 +55,12 @@ __all__ = [
     "SceneError",
     "build_scene",
     "channel_depth",
-    "model_needle_start_grip",
     "needle_path",
-    "needle_start_grip",
     "pull_ends",
     "stitch_points",
     "stitched_path",
     "suture_params",
+    "tail_held_grip",
 ]
 
 DEFAULT_SCENE: dict[str, Any] = {
@@ -462,32 +461,24 @@ def needle_path(
     return _resample(path, round(length / segment), segment)[::-1]
 
 
-def needle_start_grip(
-    entry: Any, exit_: Any, normal: Any, lift: float, segment: float, tail: float
-) -> Any:
-    """Where the first grasper's jaws hold the thread's free end in the tail-held start [m]:
-    on the end capsule (``segment`` [m] long, its axis ``lift`` [m] above the surface),
-    1 mm above its axis, with the free end ``tail`` [m] out of the entry point, away from
-    the exit. Geometry alone: a backend without a thread starts the grasper here, about
-    where one with it does (:func:`needle_path`'s chain, laid from the needle, cuts the
-    route's corners, so its free end lies up to a few mm further out)."""
-    n = np.asarray(normal, float)
-    n = n / np.linalg.norm(n)
-    entry = np.asarray(entry, float)
-    out = entry - np.asarray(exit_, float)
-    out = out - n * float(n @ out)
-    out = out / np.linalg.norm(out)
-    return entry + n * (lift + 1e-3) + out * (tail - segment / 2)
-
-
-def model_needle_start_grip(
+def tail_held_grip(
     model: Any, stitch: tuple[str, str] | None = None, tail: float = DEFAULT_TAIL
 ) -> Any:
-    """:func:`needle_start_grip` for a scene model (its stitch points and thread)."""
+    """Where the first grasper's jaws hold the thread's free end in the tail-held start
+    [m]: on the end capsule, 1 mm above its axis, with the free end ``tail`` [m] out of
+    the entry point of a scene model's stitch, away from the exit. From the model alone: a
+    backend without a thread starts the grasper here, about where one with it does
+    (:func:`needle_path`'s chain, laid from the needle, cuts the route's corners, so its
+    free end lies up to a few mm further out)."""
     entry, exit_ = stitch_points(model.tissue, stitch)
+    n = np.asarray(model.tissue.normal, float)
+    n = n / np.linalg.norm(n)
+    out = entry - exit_
+    out = out - n * float(n @ out)
+    out = out / np.linalg.norm(out)
     params = suture_params(model, 0.0)
     lift = params.collision_radius + 0.5e-3
-    return needle_start_grip(entry, exit_, model.tissue.normal, lift, params.segment_length, tail)
+    return entry + n * (lift + 1e-3) + out * (tail - params.segment_length / 2)
 
 
 def suture_params(model: Any, bending_stiffness: float) -> SutureParams:
@@ -745,7 +736,7 @@ def _build_model(
             )
             if assistant is not None:
                 # on the end capsule as laid (the chain cuts the route's corners, so its
-                # end lies up to a few mm from needle_start_grip's nominal point)
+                # end lies up to a few mm from tail_held_grip's nominal point)
                 grip = (path[0] + path[1]) / 2 + normal * 1e-3
                 q_held = _pulled_out_joints(model.robots[assistant], grip)
                 if q_held is not None:
