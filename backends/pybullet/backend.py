@@ -225,22 +225,16 @@ class PyBulletBackend:
         the first grasper where it would hold the thread's free end, so that a procedure
         starts from the same poses on both backends. Empty when the scene has no stitch
         to make (no tissue, suture or stitcher) or starts otherwise."""
-        from backends.pybullet.scene import _pulled_out_joints, tail_held_grip
+        from backends.pybullet.scene import tail_held_joints
 
         robots = getattr(scene, "robots", None) or {}
         suture = getattr(scene, "suture", None)
-        tools = {name: str(spec.tool) for name, spec in robots.items()}
         start = self.start or getattr(suture, "start", None) or "needle"
         if getattr(scene, "tissue", None) is None or suture is None or start != "tail-held":
             return {}
-        if "stitcher" not in tools.values():
+        if not any(str(spec.tool) == "stitcher" for spec in robots.values()):
             return {}
-        assistant = next((n for n in sorted(tools) if "grasper" in tools[n]), None)
-        if assistant is None:
-            return {}
-        grip = tail_held_grip(scene, self.stitch, self.tail)
-        q = _pulled_out_joints(robots[assistant], grip)
-        return {} if q is None else {assistant: q}
+        return tail_held_joints(scene, self.stitch, self.tail)
 
     def reset(self, scene: Any, seed: int) -> Measurement:
         """Connect, build the robots at the scene's base poses, measure once.

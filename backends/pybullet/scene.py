@@ -60,7 +60,9 @@ __all__ = [
     "stitch_points",
     "stitched_path",
     "suture_params",
+    "tail_assistant",
     "tail_held_grip",
+    "tail_held_joints",
 ]
 
 DEFAULT_SCENE: dict[str, Any] = {
@@ -403,9 +405,7 @@ def needle_path(
     """
     n = np.asarray(normal, float)
     entry = np.asarray(entry, float)
-    out = entry - np.asarray(exit_, float)
-    out = out - n * float(n @ out)
-    out = out / np.linalg.norm(out)
+    out = _tail_out(entry, exit_, n)
     jaw = np.asarray(jaw, float)
     bend = jaw + np.asarray(leg, float)
     below = bend - n * float(n @ (bend - entry)) + n * lift
@@ -473,12 +473,38 @@ def tail_held_grip(
     entry, exit_ = stitch_points(model.tissue, stitch)
     n = np.asarray(model.tissue.normal, float)
     n = n / np.linalg.norm(n)
-    out = entry - exit_
-    out = out - n * float(n @ out)
-    out = out / np.linalg.norm(out)
     params = suture_params(model, 0.0)
     lift = params.collision_radius + 0.5e-3
-    return entry + n * (lift + 1e-3) + out * (tail - params.segment_length / 2)
+    return (
+        entry + n * (lift + 1e-3) + _tail_out(entry, exit_, n) * (tail - params.segment_length / 2)
+    )
+
+
+def tail_held_joints(
+    model: Any, stitch: tuple[str, str] | None = None, tail: float = DEFAULT_TAIL
+) -> dict[str, tuple[float, float, float, float]]:
+    """The tail-held start's assistant (:func:`tail_assistant`) and the joints that put
+    its jaws at :func:`tail_held_grip`; empty without an assistant or when the point is
+    outside its joint limits."""
+    assistant = tail_assistant(model.robots)
+    if assistant is None:
+        return {}
+    q = _pulled_out_joints(model.robots[assistant], tail_held_grip(model, stitch, tail))
+    return {} if q is None else {assistant: q}
+
+
+def tail_assistant(robots: Mapping[str, Any]) -> str | None:
+    """The robot that holds the thread's free end in the tail-held start: the first (by
+    name) whose tool is a grasper of any kind; None when there is none."""
+    return next((n for n, spec in sorted(robots.items()) if "grasper" in spec.tool), None)
+
+
+def _tail_out(entry: Any, exit_: Any, normal: Any) -> Any:
+    """Unit direction on the surface (``normal`` a unit vector) from the exit point to the
+    entry point: the way the tail leaves the entry point."""
+    out = np.asarray(entry, float) - np.asarray(exit_, float)
+    out = out - normal * float(normal @ out)
+    return out / np.linalg.norm(out)
 
 
 def suture_params(model: Any, bending_stiffness: float) -> SutureParams:
@@ -731,9 +757,7 @@ def _build_model(
                 params.segment_length,
             )
             # The assistant grasper holds the free end (its jaws on the end capsule).
-            assistant = next(
-                (n for n, s in sorted(model.robots.items()) if "grasper" in s.tool), None
-            )
+            assistant = tail_assistant(model.robots)
             if assistant is not None:
                 # on the end capsule as laid (the chain cuts the route's corners, so its
                 # end lies up to a few mm from tail_held_grip's nominal point)
