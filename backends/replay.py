@@ -4,7 +4,8 @@ No physics: at tick k, :meth:`ReplayBackend.observe` returns the encoder
 positions (``/joint_state/<robot>``) and base wrenches (``/base_wrench/<robot>``)
 recorded at tick k, and the tool joints a trace records (``/tool_state/<robot>``: a
 bent-tip grasper's measured bend, as last recorded at or before tick k; straight when a
-trace, e.g. an older one, records none), so the engine recomputes its commands and events from the
+trace, e.g. an older one, records none; ``/hook_load/<robot>``: the hook actuator's load
+likewise, 0 when none is recorded), so the engine recomputes its commands and events from the
 very measurements of the recorded run. :func:`recorded_operator_events` gives the
 recorded operator events so they can be fed back at the same ticks. A truncated
 trace (a killed run) is served up to its last complete tick.
@@ -17,6 +18,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Mapping
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -80,6 +82,7 @@ class ReplayBackend:
         self._w: dict[str, dict[int, list[float]]] = {r: {} for r in self.robots}
         self.commands: dict[str, dict[int, list[float]]] = {r: {} for r in self.robots}
         bends: dict[str, dict[int, tuple[float, float]]] = {}
+        loads: dict[str, dict[int, float]] = {}
         for msg in reader.messages():
             topic = msg.topic
             tick = round(msg.log_time_ns / self.period_ns)
@@ -95,6 +98,8 @@ class ReplayBackend:
             elif topic.startswith("/tool_state/"):
                 bend = msg.data["bend"]
                 bends.setdefault(topic[12:], {})[tick] = (float(bend[0]), float(bend[1]))
+            elif topic.startswith("/hook_load/"):
+                loads.setdefault(topic[11:], {})[tick] = float(msg.data["load"])
         if not self.robots:
             self.robots = tuple(sorted(self._q))
         self.last_tick = self._last_complete_tick()
@@ -117,6 +122,8 @@ class ReplayBackend:
         self.last_applied: Command | None = None
         # per robot: the ticks at which the recorded bend changed, and the bends
         self._bends = {r: (sorted(b), [b[k] for k in sorted(b)]) for r, b in bends.items() if b}
+        # likewise the ticks at which the recorded hook load changed, and the loads
+        self._loads = {r: (sorted(v), [v[k] for k in sorted(v)]) for r, v in loads.items() if v}
         self._tools: dict[str, ToolState] = {r: ToolState() for r in self.robots}
         self._geometry = SceneGeometry()
 
@@ -167,6 +174,8 @@ class ReplayBackend:
             tool = self._tools.get(r)
             if r in self._bends:
                 tool = self._recorded_bend(r, k, tool if tool is not None else ToolState())
+            if r in self._loads:
+                tool = self._recorded_load(r, k, tool if tool is not None else ToolState())
             robots[r] = RobotMeasurement.trusted(
                 frozen[0], frozen[1], tool if tool is not None else ToolState()
             )
@@ -182,6 +191,15 @@ class ReplayBackend:
         if bend == tool.bend:
             return tool
         return ToolState(tool.kind, tool.jaw_closed, tool.jaw2_closed, tool.hook_extension, bend)
+
+    def _recorded_load(self, robot: str, tick: int, tool: ToolState) -> ToolState:
+        """``tool`` with the hook load [N] recorded last at or before ``tick``."""
+        import bisect
+
+        ticks, loads = self._loads[robot]
+        i = bisect.bisect_right(ticks, tick) - 1
+        load = loads[i] if i >= 0 else 0.0
+        return tool if load == tool.hook_load else replace(tool, hook_load=load)
 
     def apply(self, command: Command) -> None:
         """Keep the last command (the comparison reads the trace the engine writes) and

@@ -219,3 +219,43 @@ def test_without_orjson_the_generic_path_writes_the_same_file(
     assert codec.encode_vectors([np.zeros(2)]) is None
     without = _record(tmp_path / "b.mcap", fast=True)
     assert with_orjson == without
+
+
+def test_hook_load_is_recorded_when_it_changes_and_replayed(tmp_path: Path) -> None:
+    """``/hook_load/<robot>`` holds one message per change of the measured load (none
+    while it stays 0 from the start), and the replay backend serves, at every tick, the
+    load last recorded at or before it."""
+    from dataclasses import replace
+
+    from backends.replay import ReplayBackend
+
+    loads = [0.0, 0.0, 0.0, 0.5, 0.5, 1.25, 1.25, 1.25, 0.0, 0.0]
+    rec = TraceRecorder(
+        tmp_path / "t.mcap",
+        procedure="p",
+        seed=0,
+        control_rate_hz=1000.0,
+        robots=ROBOTS,
+        backend="test",
+        params={},
+    )
+    rng = np.random.default_rng(3)
+    for k, load in enumerate(loads):
+        obs = _observation(k, rng)
+        hooked = replace(obs.robots["endobot_2"], tool=ToolState("hook-grasper", hook_load=load))
+        obs = Observation(k, obs.t, {**obs.robots, "endobot_2": hooked}, obs.scene)
+        rec.tick(k * 1_000_000, obs, {}, {}, {"endobot_1": 0.1}, {})
+    rec.close()
+    trace = TraceReader(tmp_path / "t.mcap")
+    written = [
+        (round(m.log_time_ns / 1_000_000), m.data["load"])
+        for m in trace.messages(["/hook_load/endobot_2"])
+    ]
+    assert written == [(3, 0.5), (5, 1.25), (8, 0.0)]
+    assert not list(trace.messages(["/hook_load/endobot_1"]))
+    replay = ReplayBackend(tmp_path / "t.mcap")
+    served = [replay.reset().robots["endobot_2"].tool.hook_load]
+    for _ in loads[1:]:
+        replay.step()
+        served.append(replay.observe().robots["endobot_2"].tool.hook_load)
+    assert served == loads

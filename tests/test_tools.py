@@ -267,3 +267,34 @@ def test_jaws_on_the_needle_capsule_hold_the_needle_at_any_force() -> None:
             assert (slid > 0.01) is (start != SEGMENTS - 1)
         finally:
             p.disconnect(physicsClientId=c)
+
+
+@pytest.mark.parametrize("force", [2.0, -1.5, 0.0])
+def test_hook_load_reads_a_force_along_the_stroke(force: float) -> None:
+    """The hook actuator's load is the force something applies to the hook along the
+    jaws' +z (the stroke), with the jaws tilted; a force across the stroke is borne by
+    the guide and reads 0. The oracle is the external force applied to the hook."""
+    c = p.connect(p.DIRECT)
+    try:
+        configure_physics(c)
+        tilt = p.getQuaternionFromEuler([0.4, -0.3, 0.2])
+        g = Grasper.create(c, "g", (0.0, 0.0, 0.1))
+        g.set_pose((0.0, 0.0, 0.1), tilt)
+        g.extend_hook()
+        axes = np.asarray(p.getMatrixFromQuaternion(tilt)).reshape(3, 3)
+        for _ in range(100):
+            g.step()
+            p.stepSimulation(physicsClientId=c)
+        assert g.hook_load() == pytest.approx(0.0, abs=1e-3)
+        for _ in range(50):
+            pos, _ = p.getBasePositionAndOrientation(g.hook_body, physicsClientId=c)
+            pushed = force * axes[:, 2] + 3.0 * axes[:, 0]
+            p.applyExternalForce(
+                g.hook_body, -1, list(pushed), pos, p.WORLD_FRAME, physicsClientId=c
+            )
+            g.step()
+            p.stepSimulation(physicsClientId=c)
+        assert g.hook_load() == pytest.approx(force, abs=0.02)
+        assert Grasper.create(c, "bare", (0.05, 0.0, 0.1), hook=False).hook_load() == 0.0
+    finally:
+        p.disconnect(physicsClientId=c)

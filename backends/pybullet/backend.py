@@ -29,6 +29,7 @@ import functools
 import json
 import math
 from collections.abc import Callable, Iterator, Mapping
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -166,6 +167,9 @@ class PyBulletBackend:
     """Largest speed of each of the bent-tip grasper's universal joint axes [rad/s]."""
     BENT_TIP = "bent-tip-grasper"
     """The tool kind that has the universal joint."""
+    HOOK_LOAD_DIGITS = 2
+    """The hook actuator's load sensor resolves 10^-2 N (0.01 N): the value the skills see
+    and the trace records on the ticks it changes."""
 
     def __init__(
         self,
@@ -483,10 +487,15 @@ class PyBulletBackend:
 
     def _tool_reading(self, name: str) -> ToolState:
         """The tool state as measured: the commanded one, except that a stitcher's
-        receiving jaw reads closed only once the needle hand-over is done."""
+        receiving jaw reads closed only once the needle hand-over is done, and that a
+        simulated hook's actuator reports its load."""
         state = self._tools[name]
         tool = self.scene.tools.get(name) if self.scene is not None else None
-        if tool is None or not getattr(tool, "passing", False):
+        if tool is None:
+            return state
+        if getattr(tool, "hook_body", -1) >= 0:
+            return replace(state, hook_load=round(tool.hook_load(), self.HOOK_LOAD_DIGITS))
+        if not getattr(tool, "passing", False):
             return state
         if tool.needle_holder == 0:
             return ToolState(state.kind, state.jaw_closed, False, state.hook_extension, state.bend)

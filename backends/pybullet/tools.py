@@ -747,6 +747,24 @@ class Grasper(Tool):
                 self.hook_body, b, -1, -1, int(on), physicsClientId=self.client
             )
 
+    def hook_load(self) -> float:
+        """Load on the hook's actuator along its stroke [N] (0 without a hook).
+
+        The force the drive applies to keep the hook at its offset, along the jaws' +z
+        (the stroke; the guide bears the rest). Positive when something pulls the hook
+        out against the drive, as a thread does that the retracting hook drags. The
+        hook's weight is compensated, so an unloaded hook reads 0.
+        """
+        import pybullet as p
+
+        if self._hook_drive < 0:
+            return 0.0
+        c = self.client
+        f = p.getConstraintState(self._hook_drive, physicsClientId=c)
+        _, orn = p.getBasePositionAndOrientation(self.body, physicsClientId=c)
+        z = p.getMatrixFromQuaternion(orn)[2::3]
+        return float(f[0] * z[0] + f[1] * z[1] + f[2] * z[2])
+
     def _hook_offset(self) -> float:
         """Hook position along the jaw axis [m]: retracted behind the hinge or extended."""
         retracted = -12e-3

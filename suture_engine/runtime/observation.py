@@ -75,6 +75,9 @@ class ToolState:
         hook_extension: flexible-hook extension [m] (0 when retracted or absent).
         bend: the bent-tip grasper's universal joint angles from its encoders, about the
             shaft's x then about the turned y [rad, rad] ((0, 0): straight or absent).
+        hook_load: the flexible hook's actuator load along its stroke [N], positive when
+            something pulls the hook out against a retraction (a dragged thread); 0 when
+            the tool has no hook or the backend does not measure it.
     """
 
     kind: str = "grasper"
@@ -82,6 +85,7 @@ class ToolState:
     jaw2_closed: bool = False
     hook_extension: float = 0.0
     bend: tuple[float, float] = (0.0, 0.0)
+    hook_load: float = 0.0
 
 
 @dataclass(frozen=True)

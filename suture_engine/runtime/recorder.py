@@ -6,7 +6,8 @@ applied and the robot's mode), ``/tension/estimated`` and, when the backend has
 them, ``/ground_truth/tension`` (every tick) and ``/ground_truth/suture``
 (every ``centerline_every`` ticks), ``/tool_state/<robot>`` (the measured bend of a
 bent-tip grasper's universal joint, on the ticks it changes: never while it stays
-straight, so the traces of runs without a bend are unchanged). On events:
+straight, so the traces of runs without a bend are unchanged), ``/hook_load/<robot>``
+(the flexible hook's actuator load, likewise on the ticks it changes). On events:
 ``/transitions``, ``/events``, ``/operator``. Time is simulation time: tick * period [ns].
 """
 
@@ -157,6 +158,7 @@ class TraceRecorder(Recorder):
         self._queued_ns = 0
         self._wall_clock = self.writer.include_wall_clock
         self._bends: dict[str, tuple[float, float]] = {}
+        self._hook_loads: dict[str, float] = {}
 
     # -- the per-tick fast path -------------------------------------------------------------
 
@@ -208,6 +210,10 @@ class TraceRecorder(Recorder):
                 self._bends[name] = bend
                 topic = self._ch.tool_state_topic(name)
                 self.writer.write(topic, time_ns, {"bend": [float(bend[0]), float(bend[1])]})
+            load = robot.tool.hook_load
+            if load != self._hook_loads.get(name, 0.0):
+                self._hook_loads[name] = load
+                self.writer.write(self._ch.hook_load_topic(name), time_ns, {"load": float(load)})
         # The centerline is looked up on its ticks only: a backend may compute it lazily.
         centerline = ground_truth.get("centerline") if self._n % self._every == 0 else None
         if centerline is not None:

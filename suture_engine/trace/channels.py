@@ -20,6 +20,8 @@ Channels (``<robot>`` is a robot name such as ``left`` or ``right``):
 ``/base_wrench/<robot>``   base force/torque sensor: force [N], torque [N*m]
 ``/tool_state/<robot>``    measured tool joints when they change: the bent-tip grasper's
                            universal joint angles ``bend`` [rad] (none while straight)
+``/hook_load/<robot>``     the flexible hook's actuator load along its stroke [N], when it
+                           changes (none while the hook is unloaded)
 ``/tension/estimated``     suture tension estimated from the measurements [N]
 ``/qp/<robot>``            move-constrained QP: status, iterations, active constraints
                            (solve time [us] is wall-clock data: dropped by default)
@@ -68,6 +70,7 @@ __all__ = [
     "ChannelSpec",
     "base_wrench_topic",
     "command_topic",
+    "hook_load_topic",
     "joint_state_topic",
     "qp_topic",
     "schema_bytes",
@@ -324,6 +327,23 @@ CATALOGUE: tuple[ChannelSpec, ...] = (
         "while it stays straight from the start).",
     ),
     ChannelSpec(
+        "/hook_load/<robot>",
+        "suture_engine.HookLoad",
+        _obj(
+            "Hook actuator load",
+            {
+                "load": {
+                    **_NUM,
+                    "description": "load along the hook's stroke [N], + when something "
+                    "pulls the hook out against the drive",
+                },
+            },
+            ["load"],
+        ),
+        "The flexible hook's measured actuator load, written when it changes (never while "
+        "it stays unloaded from the start).",
+    ),
+    ChannelSpec(
         TENSION_ESTIMATED,
         "suture_engine.Tension",
         _obj(
@@ -470,6 +490,11 @@ def base_wrench_topic(robot: str) -> str:
 def tool_state_topic(robot: str) -> str:
     """``/tool_state/<robot>``."""
     return _BY_PATTERN["/tool_state/<robot>"].topic(robot)
+
+
+def hook_load_topic(robot: str) -> str:
+    """``/hook_load/<robot>``."""
+    return _BY_PATTERN["/hook_load/<robot>"].topic(robot)
 
 
 def qp_topic(robot: str) -> str:
