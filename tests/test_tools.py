@@ -298,3 +298,51 @@ def test_hook_load_reads_a_force_along_the_stroke(force: float) -> None:
         assert Grasper.create(c, "bare", (0.05, 0.0, 0.1), hook=False).hook_load() == 0.0
     finally:
         p.disconnect(physicsClientId=c)
+
+
+@pytest.mark.parametrize(
+    "direction", [(1.0, 0.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.6, 0.0, 0.8)]
+)
+def test_the_extending_hook_gives_way_on_the_thread_the_jaws_hold(direction) -> None:
+    """A grasper holds a thread by its end capsule; the hook extends over the jaws into it.
+    Its actuator gives way at ``hook_drive_force`` (5 N): the load never exceeds it and the
+    held capsule stays in the grip, whichever way the thread leaves the jaws. With the
+    tools' 50 N drive instead, the hook shoves the held capsule out of the grip."""
+    c = p.connect(p.DIRECT)
+    try:
+        configure_physics(c)
+        d = np.asarray(direction) / np.linalg.norm(direction)
+        params = SutureParams(length=LENGTH, n_segments=SEGMENTS, needle=False)
+
+        def extend(drive: float) -> tuple[float, float]:
+            """Peak actuator load [N] and how far the held capsule moved [m]."""
+            suture = Suture.create(c, straight_path((0.0, 0.0, 0.05), tuple(d), LENGTH), params)
+            line = suture.centerline()
+            at = tuple((line[0] + line[1]) / 2)
+            g = Grasper.create(c, f"g{drive}", at, suture=suture, hook_drive_force=drive)
+            g.grip(0)
+
+            def step() -> None:
+                g.step()
+                suture.pre_step()
+                p.stepSimulation(physicsClientId=c)
+
+            for _ in range(200):  # the hook's drive pulls it in from where it was built
+                step()
+            before, _ = p.getBasePositionAndOrientation(suture.bodies[0], physicsClientId=c)
+            g.extend_hook()
+            loads = []
+            for _ in range(400):
+                step()
+                loads.append(abs(g.hook_load()))
+            after, _ = p.getBasePositionAndOrientation(suture.bodies[0], physicsClientId=c)
+            p.resetSimulation(physicsClientId=c)
+            configure_physics(c)
+            return max(loads), float(np.linalg.norm(np.subtract(after, before)))
+
+        load, moved = extend(Grasper.hook_drive_force)
+        assert load <= Grasper.hook_drive_force + 1e-6 and moved < 0.2e-3
+        load, moved = extend(50.0)
+        assert load > 40.0 and moved > 2e-3
+    finally:
+        p.disconnect(physicsClientId=c)

@@ -300,6 +300,11 @@ class Grasper(Tool):
             ``(1 - hook_release) * (hook_reach + 12 mm)`` of travel (0.8: 2.7 mm, the crook
             still over the jaws, where the solid jaws take the loop; dragged further, to
             half travel, the strand caught on the jaws' end and spiked to 9.7 N for 8 ms).
+        hook_drive_force: the most force the hook's actuator applies along (and across)
+            its stroke [N]; pushed harder, the hook gives way. With the tools' 50 N drive,
+            the extending hook pressed the thread end the jaws hold (the tail-held start)
+            at 50-59 N, shoving it (true tension 4.45 N), and the retracting hook dragged
+            the strand over the jaws to 7.9-10.3 N true (full chain, seeds 0, 2, 3).
         solid: the jaws, once they hold the thread, collide with the rest of it (not with
             the held capsule and its ``spare`` neighbours, which the closed jaws enclose,
             nor with the needle), so that a loop around them rests on them as on real
@@ -340,6 +345,7 @@ class Grasper(Tool):
     hook_travel_time: float = 0.3
     hook_reach: float = 1.5e-3
     hook_release: float = 0.8
+    hook_drive_force: float = 5.0
     solid: bool = False
     spare: int = 2
     jaw_friction: float = 0.1
@@ -808,7 +814,7 @@ class Grasper(Tool):
             [0, 0, 0],
             physicsClientId=c,
         )
-        p.changeConstraint(self._hook_drive, maxForce=self.drive_force, physicsClientId=c)
+        p.changeConstraint(self._hook_drive, maxForce=self.hook_drive_force, physicsClientId=c)
 
 
 @dataclass
