@@ -304,7 +304,7 @@ class Grasper(Tool):
             its stroke [N]; pushed harder, the hook gives way. With the tools' 50 N drive,
             the extending hook pressed the thread end the jaws hold (the tail-held start)
             at 50-59 N, shoving it (true tension 4.45 N), and the retracting hook dragged
-            the strand over the jaws to 7.9-10.3 N true (full chain, seeds 0, 2, 3).
+            the strand over the jaws to 9.88 N true (full chain, seed 0; 0.40 N at 5 N).
         solid: the jaws, once they hold the thread, collide with the rest of it (not with
             the held capsule and its ``spare`` neighbours, which the closed jaws enclose,
             nor with the needle), so that a loop around them rests on them as on real
