@@ -33,6 +33,20 @@ PROCS = Path(__file__).parent / "procedures"
 ROBOTS = ("endobot_1", "endobot_2")
 
 
+def _recorder(path: Path, **options: Any) -> TraceRecorder:
+    """A recorder for two robots, procedure "p", seed 0, at 1 kHz."""
+    return TraceRecorder(
+        path,
+        procedure="p",
+        seed=0,
+        control_rate_hz=1000.0,
+        robots=ROBOTS,
+        backend="test",
+        params={},
+        **options,
+    )
+
+
 def _observation(k: int, rng: np.random.Generator) -> Observation:
     """Values across the decades where repr and orjson lay numbers out differently."""
     scale = 10.0 ** rng.integers(-12, 3, size=6)
@@ -51,17 +65,7 @@ def _observation(k: int, rng: np.random.Generator) -> Observation:
 def _record(path: Path, fast: bool, wall_clock: bool = False) -> bytes:
     """One call sequence, with the odd cases the fast path must hand over or keep in order."""
     rng = np.random.default_rng(7)
-    rec = TraceRecorder(
-        path,
-        procedure="p",
-        seed=0,
-        control_rate_hz=1000.0,
-        robots=ROBOTS,
-        backend="test",
-        params={},
-        centerline_every=4,
-        fast=fast,
-    )
+    rec = _recorder(path, centerline_every=4, fast=fast)
     if wall_clock:
         rec.writer._include_wall_clock = True
         rec._wall_clock = True
@@ -118,15 +122,7 @@ def test_fast_path_keeps_wall_clock_fields_when_asked(tmp_path: Path) -> None:
 
 
 def test_fast_path_is_taken_and_matches_json_on_a_tick(tmp_path: Path) -> None:
-    rec = TraceRecorder(
-        tmp_path / "t.mcap",
-        procedure="p",
-        seed=0,
-        control_rate_hz=1000.0,
-        robots=ROBOTS,
-        backend="test",
-        params={},
-    )
+    rec = _recorder(tmp_path / "t.mcap")
     obs = _observation(0, np.random.default_rng(3))
     torques = {r: np.array([0.25, -1e-9, 3e16, 5e-5]) for r in ROBOTS}
     batch: list[tuple[str, bytes]] = []
@@ -187,16 +183,7 @@ def test_centerline_is_looked_up_on_its_ticks_only(tmp_path: Path) -> None:
         def __len__(self) -> int:
             return 2
 
-    rec = TraceRecorder(
-        tmp_path / "t.mcap",
-        procedure="p",
-        seed=0,
-        control_rate_hz=1000.0,
-        robots=ROBOTS,
-        backend="test",
-        params={},
-        centerline_every=100,
-    )
+    rec = _recorder(tmp_path / "t.mcap", centerline_every=100)
     truth = CountingTruth()
     rng = np.random.default_rng(1)
     for k in range(250):
@@ -230,15 +217,7 @@ def test_hook_load_is_recorded_when_it_changes_and_replayed(tmp_path: Path) -> N
     from backends.replay import ReplayBackend
 
     loads = [0.0, 0.0, 0.0, 0.5, 0.5, 1.25, 1.25, 1.25, 0.0, 0.0]
-    rec = TraceRecorder(
-        tmp_path / "t.mcap",
-        procedure="p",
-        seed=0,
-        control_rate_hz=1000.0,
-        robots=ROBOTS,
-        backend="test",
-        params={},
-    )
+    rec = _recorder(tmp_path / "t.mcap")
     rng = np.random.default_rng(3)
     for k, load in enumerate(loads):
         obs = _observation(k, rng)
