@@ -56,6 +56,16 @@ class EndOfRecording(BackendError):
         self.tick = tick
 
 
+def _last_recorded(series: tuple[list[int], list[Any]], tick: int, default: Any) -> Any:
+    """The value of ``series`` (the ticks it changed at, sorted, and its values) recorded
+    last at or before ``tick``; ``default`` before its first change."""
+    import bisect
+
+    ticks, values = series
+    i = bisect.bisect_right(ticks, tick) - 1
+    return values[i] if i >= 0 else default
+
+
 class ReplayBackend:
     """Serves the measurements of a recorded trace.
 
@@ -171,35 +181,17 @@ class ReplayBackend:
             if frozen is None:  # malformed: the checked constructor says why
                 probe = RobotMeasurement(np.array(self._q[r][k]), np.array(self._w[r][k]))
                 frozen = self._frozen[(r, k)] = (probe.q, probe.base_wrench)
-            tool = self._tools.get(r)
+            tool = self._tools.get(r) or ToolState()
             if r in self._bends:
-                tool = self._recorded_bend(r, k, tool if tool is not None else ToolState())
+                bend = _last_recorded(self._bends[r], k, (0.0, 0.0))
+                if bend != tool.bend:
+                    tool = replace(tool, bend=bend)
             if r in self._loads:
-                tool = self._recorded_load(r, k, tool if tool is not None else ToolState())
-            robots[r] = RobotMeasurement.trusted(
-                frozen[0], frozen[1], tool if tool is not None else ToolState()
-            )
+                load = _last_recorded(self._loads[r], k, 0.0)
+                if load != tool.hook_load:
+                    tool = replace(tool, hook_load=load)
+            robots[r] = RobotMeasurement.trusted(frozen[0], frozen[1], tool)
         return Measurement(k, k * self.period_ns * 1e-9, robots)
-
-    def _recorded_bend(self, robot: str, tick: int, tool: ToolState) -> ToolState:
-        """``tool`` with the bend [rad] recorded last at or before ``tick``."""
-        import bisect
-
-        ticks, bends = self._bends[robot]
-        i = bisect.bisect_right(ticks, tick) - 1
-        bend = bends[i] if i >= 0 else (0.0, 0.0)
-        if bend == tool.bend:
-            return tool
-        return ToolState(tool.kind, tool.jaw_closed, tool.jaw2_closed, tool.hook_extension, bend)
-
-    def _recorded_load(self, robot: str, tick: int, tool: ToolState) -> ToolState:
-        """``tool`` with the hook load [N] recorded last at or before ``tick``."""
-        import bisect
-
-        ticks, loads = self._loads[robot]
-        i = bisect.bisect_right(ticks, tick) - 1
-        load = loads[i] if i >= 0 else 0.0
-        return tool if load == tool.hook_load else replace(tool, hook_load=load)
 
     def apply(self, command: Command) -> None:
         """Keep the last command (the comparison reads the trace the engine writes) and
