@@ -23,7 +23,38 @@ from skills.base import Skill, SkillParams
 from suture_engine.language.refs import PointRef, RoleRef
 from suture_engine.language.units import Angle, Force, Speed
 
-__all__ = ["PlaceKnot", "PlaceKnotParams"]
+__all__ = ["PlaceKnot", "PlaceKnotParams", "wound_points"]
+
+
+def wound_points(ctx: Any, site: str) -> tuple[Any, Any, Any]:
+    """The knot site and its stitch's entry and exit points [m], in the world frame.
+
+    A site named ``knot_<k>`` pairs with the scene's ``entry_<k>`` and ``exit_<k>``;
+    without them, the observation's declared ``entry`` and ``exit`` points are used.
+
+    Args:
+        ctx: the skill context (its scene's tissue points).
+        site: the knot site's name in the scene.
+
+    Returns:
+        ``(site, p_a, p_b)``: the site, the entry point and the exit point [m].
+
+    Raises:
+        KeyError: the scene names no such site.
+    """
+    import numpy as np
+
+    points = ctx.scene.tissue.points if ctx.scene is not None else {}
+    if site not in points:
+        raise KeyError(f"no tissue point named {site!r}; known: {sorted(points)}")
+    where = np.array(points[site], dtype=float)
+    suffix = site.split("_", 1)[1] if "_" in site else ""
+    entry, exit = f"entry_{suffix}", f"exit_{suffix}"
+    if suffix and entry in points and exit in points:
+        return where, np.array(points[entry], float), np.array(points[exit], float)
+    pa = np.array(ctx.start.scene.entry_point, dtype=float)
+    pb = np.array(ctx.start.scene.exit_point, dtype=float)
+    return where, pa, pb
 
 
 class PlaceKnotParams(SkillParams):
@@ -85,24 +116,6 @@ class PlaceKnot(Skill):
         self._n: Any = None
         self._result: dict[str, float] = {}
 
-    def _anchors(self, ctx: Any) -> tuple[Any, Any, Any]:
-        import numpy as np
-
-        p = self.params
-        assert isinstance(p, PlaceKnotParams)
-        points = ctx.scene.tissue.points if ctx.scene is not None else {}
-        if p.site not in points:
-            raise KeyError(f"no tissue point named {p.site!r}; known: {sorted(points)}")
-        site = np.array(points[p.site], dtype=float)
-        suffix = p.site.split("_", 1)[1] if "_" in p.site else ""
-        entry, exit = f"entry_{suffix}", f"exit_{suffix}"
-        if suffix and entry in points and exit in points:
-            pa, pb = np.array(points[entry], float), np.array(points[exit], float)
-        else:
-            pa = np.array(ctx.start.scene.entry_point, dtype=float)
-            pb = np.array(ctx.start.scene.exit_point, dtype=float)
-        return site, pa, pb
-
     def start(self, ctx: Any) -> None:
         """Predict the knot, compute the end trajectories (4.36-4.40) and plan both tools.
 
@@ -121,7 +134,7 @@ class PlaceKnot(Skill):
         self._t0 = ctx.t0
         self._failure = ""
         self._result = {}
-        site, self._pa, self._pb = self._anchors(ctx)
+        site, self._pa, self._pb = wound_points(ctx, p.site)
         normal = np.asarray(ctx.start.scene.tissue_normal, dtype=float)
         if ctx.scene is not None:
             normal = np.asarray(ctx.scene.tissue.normal, dtype=float)

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Annotated, Any, ClassVar, Literal
 from pydantic import Field
 
 from skills.base import Skill, SkillNotAvailable, SkillParams
-from suture_engine.language.refs import RoleRef
+from suture_engine.language.refs import PointRef, RoleRef
 from suture_engine.language.units import Damping, Duration, Force, Unit
 
 if TYPE_CHECKING:
@@ -47,6 +47,9 @@ class TensionRegulateParams(SkillParams):
     """Desired tension F_des [N]; at most the scene's tension limit."""
     throw: Literal[1, 2] = 1
     """Which throw of a square knot is secured; the second pulls the opposite way (7.1-7.3)."""
+    site: PointRef | None = None
+    """The knot site named in the scene (``knot_<k>``): its stitch's ``entry_<k>`` and
+    ``exit_<k>`` give the securing direction. Default: the declared ``entry`` and ``exit``."""
     kp: float = Field(default=0.2, ge=0.0, le=1e3)
     """Proportional force gain Kp [-] (7.22)."""
     ki: Annotated[float, Unit("1/s")] = Field(default=0.3, gt=0.0, le=1e4)
@@ -121,6 +124,7 @@ class TensionRegulate(Skill):
         """
         import numpy as np
 
+        from skills.place_knot import wound_points
         from suture_engine.control.hybrid_force import (
             ExplicitForceController,
             HybridForcePositionController,
@@ -140,11 +144,12 @@ class TensionRegulate(Skill):
         q0 = np.asarray(start.q, dtype=float)
         geo = ctx.start.scene
         self._error = ""
+        entry, exit = geo.entry_point, geo.exit_point
         try:
-            rule = securing_directions(
-                geo.entry_point, geo.exit_point, p.throw, normal=geo.tissue_normal
-            )
-        except ValueError as exc:  # no entry/exit points declared: no securing direction
+            if p.site is not None:
+                _, entry, exit = wound_points(ctx, p.site)
+            rule = securing_directions(entry, exit, p.throw, normal=geo.tissue_normal)
+        except (KeyError, ValueError) as exc:  # no entry or exit point: no direction
             self._error = f"no securing direction (7.1-7.3): {exc}"
             self._ctrl = None
             return

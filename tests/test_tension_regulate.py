@@ -6,6 +6,7 @@ wrench, declared geometry); the check uses the simulated suture's own tension.
 
 from __future__ import annotations
 
+from types import SimpleNamespace
 from typing import Literal
 
 import numpy as np
@@ -34,7 +35,17 @@ def _observation(tick: int, t: float, q: np.ndarray, qd: np.ndarray, wrench: np.
     return Observation(tick, t, {"endobot_2": ro}, geo)
 
 
-def _run(throw: Literal[1, 2], seconds: float) -> tuple[list[SkillStatus], float, TensionRegulate]:
+def _scene(points: dict[str, tuple[float, float, float]]) -> SimpleNamespace:
+    """A scene model's parts the skill reads: tissue points, robots, tension limit [N]."""
+    return SimpleNamespace(tissue=SimpleNamespace(points=points), robots={}, tension_limit=20.0)
+
+
+def _run(
+    throw: Literal[1, 2],
+    seconds: float,
+    site: str | None = None,
+    scene: SimpleNamespace | None = None,
+) -> tuple[list[SkillStatus], float, TensionRegulate]:
     from backends.pybullet.robot import EndoBotSim
     from suture_engine.robot import endobot
 
@@ -60,10 +71,11 @@ def _run(throw: Literal[1, 2], seconds: float) -> tuple[list[SkillStatus], float
             dt=sim.dt,
             start=obs,
             base_poses={"endobot_2": (tuple(base), tuple(rot.ravel()))},
+            scene=scene,
         )
         params = TensionRegulateParams(
             robot="grasper", tension=10.0, throw=throw, kp=0.3, ki=0.5, kv=1000.0, ramp=False,
-            hold_time=0.5, timeout=seconds,
+            hold_time=0.5, timeout=seconds, site=site,
         )  # fmt: skip
         skill = TensionRegulate(params)
         skill.start(ctx)
@@ -119,3 +131,33 @@ def test_without_entry_and_exit_points_it_fails_with_a_message() -> None:
     res = skill.step(ctx, obs)
     assert res.status is SkillStatus.FAILURE
     assert "securing direction" in res.message
+
+
+def test_a_named_site_takes_the_direction_from_its_own_stitch() -> None:
+    """``site: knot_2`` pairs with ``entry_2``/``exit_2``, not the declared entry and exit:
+    with that stitch laid the other way round, throw 1 pulls towards the fixture (slack)."""
+    swapped = _scene({"entry_2": EXIT, "exit_2": ENTRY, "knot_2": ENTRY})
+    statuses, true_tension, skill = _run(throw=1, seconds=1.5, site="knot_2", scene=swapped)
+    assert statuses[-1] is SkillStatus.FAILURE
+    assert true_tension == 0.0
+    assert skill.metrics()["peak_tension_N"] < 0.5
+    same = _scene({"entry_2": ENTRY, "exit_2": EXIT, "knot_2": ENTRY})
+    statuses, true_tension, _ = _run(throw=1, seconds=8.0, site="knot_2", scene=same)
+    assert statuses[-1] is SkillStatus.SUCCESS
+    assert true_tension == pytest.approx(10.0, rel=0.08)
+
+
+def test_an_unknown_site_fails_with_the_names_it_knows() -> None:
+    q = np.array([0.0, 0.0, 0.0, 0.1])
+    ro = RobotObservation(q, np.zeros(4), np.zeros(6), ToolState("grasper"))
+    obs = Observation(0, 0.0, {"endobot_2": ro}, SceneGeometry())
+    ctx = SkillContext(
+        step="secure", roles={"grasper": "endobot_2"}, dt=1e-3, start=obs,
+        scene=_scene({"knot_1": ENTRY}),
+    )  # fmt: skip
+    skill = TensionRegulate(TensionRegulateParams(robot="grasper", tension=5.0, site="knot_2"))
+    skill.start(ctx)
+    res = skill.step(ctx, obs)
+    assert res.status is SkillStatus.FAILURE
+    assert "securing direction" in res.message and "knot_2" in res.message
+    assert "knot_1" in res.message
