@@ -62,6 +62,9 @@ ROOT = Path(__file__).resolve().parents[1]
 PROCEDURES = ROOT / "procedures"
 STITCH = PROCEDURES / "stitch.yaml"
 DEFAULT_PROCEDURES = ("stitch", "square-knot", "shared-control-line", "shared-control-circle")
+PROCEDURE_SETS = {"square-knot.yaml": ("stitch=true",)}
+"""``--set`` values per procedure: the square knot makes its stitch first (the whole
+chain; by default it starts from a stitch already made)."""
 ROBOTS = ("endobot_1", "endobot_2")
 THREAD_KINDS = ("grasp-slip", "snag")
 BASELINE_MAX_TIME_S = 900.0
@@ -76,11 +79,11 @@ def procedure_path(name: str) -> Path:
     return PROCEDURES / f"{stem}.yaml"
 
 
-def plan_steps(procedure: Path) -> tuple[tuple[str, ...], float]:
-    """The procedure's step names and the sum of their timeouts [s]."""
+def plan_steps(procedure: Path, sets: tuple[str, ...] = ()) -> tuple[tuple[str, ...], float]:
+    """The procedure's step names and the sum of their timeouts [s], with ``sets``."""
     from suture_engine.runtime.run import load_plan
 
-    _, plan = load_plan(procedure)
+    _, plan = load_plan(procedure, sets)
     steps = tuple(plan.steps)
     timeouts = sum(float(s.timeout_s or 0.0) for s in plan.steps.values())
     return steps, timeouts
@@ -102,8 +105,9 @@ def baselines(
     for n, proc in enumerate(procedures):
         if proc.name in done:
             continue
-        steps, _ = plan_steps(proc)
-        target = Target(proc, backend, (), steps, ROBOTS, 0.0, BASELINE_MAX_TIME_S)
+        sets = PROCEDURE_SETS.get(proc.name, ())
+        steps, _ = plan_steps(proc, sets)
+        target = Target(proc, backend, (), steps, ROBOTS, 0.0, BASELINE_MAX_TIME_S, sets)
         todo.append(baseline_job(target, n, seed, out / "baseline" / proc.stem))
     if todo:
         print(f"fault-free baselines: {', '.join(j.target.procedure.name for j in todo)}")
@@ -123,7 +127,8 @@ def targets(
     baseline."""
     out = []
     for proc in procedures:
-        steps, timeouts = plan_steps(proc)
+        sets = PROCEDURE_SETS.get(proc.name, ())
+        steps, timeouts = plan_steps(proc, sets)
         duration = base[proc.name].sim_time_s
         limit = max_time if max_time is not None else time_limit(duration, timeouts)
         out.append(
@@ -135,6 +140,7 @@ def targets(
                 ROBOTS,
                 horizon_s=round(max(duration, 1.0), 1),
                 max_time_s=limit,
+                sets=sets,
             )
         )
     return out

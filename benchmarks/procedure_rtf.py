@@ -15,6 +15,7 @@ interface and in the engine. Pin it to one core on a shared machine:
 
     taskset -c 1 python benchmarks/procedure_rtf.py [--backend pybullet ...]
         [--max-time 300] [--procedure procedures/square-knot.yaml] [--profile DIR]
+        [--set stitch=true ...]
 
 ``--profile DIR`` also writes a pyinstrument text profile of each run to DIR.
 """
@@ -25,7 +26,7 @@ import argparse
 import os
 import tempfile
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -81,8 +82,15 @@ class _Clock:
         return timed
 
 
-def run(procedure: Path, backend: str, max_time_s: float, profile_dir: Path | None) -> Split:
-    """Run ``procedure`` on ``backend`` and split its time."""
+def run(
+    procedure: Path,
+    backend: str,
+    max_time_s: float,
+    profile_dir: Path | None,
+    sets: Sequence[str] = (),
+) -> Split:
+    """Run ``procedure`` on ``backend`` (parameters overridden by ``sets``) and split its
+    time."""
     from suture_engine.runtime.run import run_procedure
 
     physics, io = _Clock(), _Clock()
@@ -114,6 +122,7 @@ def run(procedure: Path, backend: str, max_time_s: float, profile_dir: Path | No
             out=Path(tmp) / "run",
             max_time_s=max_time_s,
             on_tick=on_tick,
+            sets=sets,
         )
         cpu = time.process_time() - state["cpu0"]
     if profiler is not None and profile_dir is not None:
@@ -171,11 +180,18 @@ def main() -> None:
     )
     ap.add_argument("--max-time", type=float, default=300.0, help="simulated time limit [s]")
     ap.add_argument("--profile", type=Path, default=None, help="write pyinstrument profiles here")
+    ap.add_argument(
+        "--set",
+        dest="sets",
+        action="append",
+        default=[],
+        help="name=value parameter override (repeatable), as `suture run --set`",
+    )
     args = ap.parse_args()
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"{args.procedure.name}, max {args.max_time:g} s simulated; load average {load:.2f}")
     for backend in args.backend or ["pybullet", "pybullet-surgical"]:
-        print(report(run(args.procedure, backend, args.max_time, args.profile)))
+        print(report(run(args.procedure, backend, args.max_time, args.profile, args.sets)))
 
 
 if __name__ == "__main__":

@@ -281,3 +281,34 @@ def test_the_declared_backend_is_read_from_the_file_head_only(tmp_path: Path) ->
         assert declared_backend(tmp_path / name) == expected, name
     assert declared_backend(tmp_path / "missing.yaml") == DEFAULT_BACKEND
     assert DEFAULT_BACKEND == "pybullet"
+
+
+def test_a_declared_backend_may_depend_on_the_parameters(tmp_path: Path) -> None:
+    """``backend: "${...}"`` is evaluated with the parameters, ``--set`` included; a bad
+    expression or a value that names no backend is a located error."""
+    from suture_engine.runtime.run import DEFAULT_BACKEND, declared_backend
+    from suture_engine.trace.reader import TraceReader
+
+    text = (PROCS / "steps.yaml").read_text()
+    (tmp_path / "scene.yaml").write_text((PROCS / "scene.yaml").read_text())
+    proc = tmp_path / "steps.yaml"
+    head = (
+        "backend: \"${'ideal' if light else 'pybullet'}\"\nscene: scene.yaml\n"
+        "params:\n  light: {type: bool, default: true}\n"
+    )
+    proc.write_text(text.replace("scene: scene.yaml\nparams:\n", head))
+    assert declared_backend(proc) == "ideal"
+    assert declared_backend(proc, ["light=false"]) == "pybullet"
+    assert declared_backend(proc, ["light=maybe"]) == DEFAULT_BACKEND  # left to the loader
+    res = _suture("run", str(proc), "--set", "light=false", "--out", str(tmp_path / "heavy"))
+    assert res.returncode == 0, res.stdout + res.stderr
+    assert TraceReader(tmp_path / "heavy" / "trace.mcap").meta["backend"] == "pybullet"
+    direct = run_procedure(proc, out=tmp_path / "api", max_time_s=5.0)
+    assert TraceReader(direct.trace).meta["backend"] == "ideal"
+    for bad, code in (("${'ideal' if light else}", "bad-expression"), ("${3}", "unknown-backend")):
+        proc.write_text(text.replace("scene: scene.yaml\nparams:\n", head.replace(
+            "${'ideal' if light else 'pybullet'}", bad)))  # fmt: skip
+        res = _suture("validate", str(proc))
+        out = res.stdout + res.stderr
+        assert res.returncode != 0 and f"{proc}:4" in out and code in out, out
+        assert "Traceback" not in out

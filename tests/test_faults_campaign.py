@@ -5,6 +5,7 @@ from __future__ import annotations
 import importlib.util
 import math
 import sys
+from dataclasses import replace
 from pathlib import Path
 from types import ModuleType
 
@@ -219,6 +220,18 @@ def test_a_short_time_limit_is_classified(tmp_path: Path) -> None:
     assert row.exit_code == 1 and row.sim_time_s == pytest.approx(0.05, abs=0.002)
 
 
+def test_a_target_passes_its_parameter_overrides_to_the_run(tmp_path: Path) -> None:
+    # steps.yaml bounds hold_time to 5 s: the override reaches the run, which refuses it
+    bad = Target(STEPS, "ideal", ("noise",), (), ("endobot_1",), 0.1, 1.0, ("hold_time=9 s",))
+    row = run_job(baseline_job(bad, 0, 1, tmp_path / "s"))
+    assert row.outcome == "crash" and "hold_time" in row.error, row
+    good = Target(STEPS, "ideal", ("noise",), (), ("endobot_1",), 0.1, 5.0, ("hold_time=20 ms",))
+    fast = run_job(baseline_job(good, 0, 1, tmp_path / "g"))
+    slow = run_job(baseline_job(replace(good, sets=()), 0, 1, tmp_path / "d"))
+    assert fast.outcome == slow.outcome == "succeeded", (fast, slow)
+    assert slow.sim_time_s - fast.sim_time_s == pytest.approx(0.18, abs=0.005)
+
+
 def _load_benchmark() -> ModuleType:
     spec = importlib.util.spec_from_file_location(
         "fault_campaign_bench", ROOT / "benchmarks" / "fault_campaign.py"
@@ -243,7 +256,9 @@ def test_the_benchmark_sets_each_procedure_its_limit_from_its_baseline() -> None
     stitch, square = bench.targets(procs, "pybullet", rows, None)
     # stitch: timeouts 15 s + 30 s + 40 s + 20 s; 17.15 + 105 = 122.15 -> 130 s
     assert (stitch.max_time_s, stitch.horizon_s) == (130.0, 17.1)
-    _, square_timeouts = bench.plan_steps(procs[1])
+    # the campaign's square knot makes its stitch (by default it starts from one made)
+    assert square.sets == ("stitch=true",) and stitch.sets == ()
+    _, square_timeouts = bench.plan_steps(procs[1], square.sets)
     assert square.max_time_s >= 109.65 + square_timeouts
     assert square.max_time_s - (109.65 + square_timeouts) < 10.0
     assert square.steps[0].startswith(("mirrored-knot.", "simple-knot."))

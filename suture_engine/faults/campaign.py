@@ -99,6 +99,7 @@ class Target:
         robots: the scene's robot names.
         horizon_s: fault times are drawn in ``[0, horizon_s]`` [s].
         max_time_s: the run's simulated time limit [s].
+        sets: ``name=value`` overrides of the procedure's parameters (``--set``).
     """
 
     procedure: Path
@@ -108,6 +109,7 @@ class Target:
     robots: tuple[str, ...]
     horizon_s: float = 12.0
     max_time_s: float = 40.0
+    sets: tuple[str, ...] = ()
 
 
 class CampaignJob(NamedTuple):
@@ -357,6 +359,8 @@ def run_job(job: CampaignJob, python: str = sys.executable) -> CampaignRow:
         "--out",
         str(job.out_dir),
     ]
+    for text in t.sets:
+        cmd += ["--set", text]
     if job.fault:
         cmd += ["--fault", job.fault]
     env = {**os.environ, "COLUMNS": "200", "NO_COLOR": "1"}

@@ -230,27 +230,31 @@ def _load_document(
         initial=initial if isinstance(initial, str) else "",
         states=states,
         source=source,
-        backend=_backend(ctx, head, source) if not stack else None,
+        backend=_backend(ctx, head, source, names) if not stack else None,
     )
 
 
-def _backend(ctx: _Context, head: _Head, source: SourceMap) -> str | None:
-    """The file's ``backend:``, checked against the registered backends."""
+def _backend(ctx: _Context, head: _Head, source: SourceMap, names: Mapping[str, Any]) -> str | None:
+    """The file's ``backend:`` (``${...}`` evaluated with the parameters), checked
+    against the registered backends."""
     if head.backend is None:
         return None
     from backends.registry import available
 
-    names = available()
-    if head.backend not in names:
+    name = _resolve(ctx, head.backend, source, ("backend",), names)
+    if name is _INVALID:  # a bad expression, already reported
+        return None
+    registered = available()
+    if not isinstance(name, str) or name not in registered:
         ctx.problems.append(
             source.problem(
                 "unknown-backend",
-                f"no backend named {head.backend!r}; registered: {', '.join(names)}",
+                f"no backend named {name!r}; registered: {', '.join(registered)}",
                 ("backend",),
             )
         )
         return None
-    return head.backend
+    return name
 
 
 def _validate_head(ctx: _Context, data: dict[str, Any], source: SourceMap) -> _Head | None:

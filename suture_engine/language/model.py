@@ -174,7 +174,8 @@ class ProcedureDocument(_Model):
     backend: str | None = None
     """The backend ``suture run`` uses for this procedure when no ``--backend`` is given
     (a registered name, e.g. ``pybullet-surgical`` for a procedure that needs the thread
-    and the tissue); without it, ``pybullet``. Read from the top-level file only."""
+    and the tissue); without it, ``pybullet``. Read from the top-level file only; ``${...}``
+    sees the parameters, as ``scene`` does."""
     includes_outside: bool = False
     """Allow ``use:`` and ``scene`` paths that leave this file's folder tree."""
     params: dict[str, ParamSpec] = Field(default_factory=dict)

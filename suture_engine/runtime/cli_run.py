@@ -106,7 +106,7 @@ def run_command(
         _error(f"{file}: no such file")
         return 2
     if backend is None:
-        backend = declared_backend(file)
+        backend = declared_backend(file, sets)
     if not 0.0 < max_time < float("inf"):
         _error(f"--max-time must be a positive, finite number of seconds, found {max_time:g}")
         return 2

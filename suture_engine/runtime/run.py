@@ -207,10 +207,12 @@ DEFAULT_BACKEND = "pybullet"
 """The backend of a run that names none and whose procedure names none."""
 
 
-def declared_backend(path: str | Path) -> str:
+def declared_backend(path: str | Path, sets: Sequence[str] = ()) -> str:
     """The backend ``suture run FILE`` uses without ``--backend``: the file's top-level
-    ``backend:`` if it is a string, else :data:`DEFAULT_BACKEND`. A file that does not
-    read is left to the loader, which reports it located."""
+    ``backend:`` if it is a string, else :data:`DEFAULT_BACKEND`. A ``${...}`` in it is
+    evaluated with the parameters (``sets`` overriding their defaults), which takes
+    loading the procedure. A file that does not read or load is left to the loader,
+    which reports it located."""
     import yaml
 
     try:
@@ -218,7 +220,15 @@ def declared_backend(path: str | Path) -> str:
     except (OSError, UnicodeDecodeError, yaml.YAMLError):
         return DEFAULT_BACKEND
     value = data.get("backend") if isinstance(data, dict) else None
-    return value if isinstance(value, str) else DEFAULT_BACKEND
+    if not isinstance(value, str):
+        return DEFAULT_BACKEND
+    if "${" not in value:
+        return value
+    try:
+        proc, _ = load_plan(path, sets)
+    except (ProcedureLoadError, SetOverrideError):
+        return DEFAULT_BACKEND
+    return str(proc.backend or DEFAULT_BACKEND)
 
 
 def declared_operator_file(path: str | Path, params: Mapping[str, Any]) -> Path | None:
