@@ -243,10 +243,11 @@ def is_success(outcome: str, knot: str, bound: bool = True, *, single: bool = Fa
 
 def job_sets(job: Job) -> list[str]:
     """The run's ``--set`` values: a single throw or a square knot on the stitched start
-    (a ``*-stitched`` backend) skips the stitch; a square knot picks its algorithm."""
+    (a ``*-stitched`` backend) skips the stitch, elsewhere makes it; a square knot picks
+    its algorithm."""
     stitched = job.single or job.backend.endswith("-stitched")
     return ([] if job.single else [f"algorithm={job.algorithm}"]) + (
-        ["stitch=false"] if stitched else []
+        ["stitch=false"] if stitched else ["stitch=true"]
     )
 
 

@@ -159,11 +159,11 @@ def test_accepted_options_read_the_backend_constructors() -> None:
     ("backend", "single", "sets"),
     [
         ("pybullet-surgical-stitched", False, ["algorithm=2", "stitch=false"]),
-        ("pybullet-surgical", False, ["algorithm=2"]),
+        ("pybullet-surgical", False, ["algorithm=2", "stitch=true"]),
         ("pybullet-surgical-stitched", True, ["stitch=false"]),
     ],
 )
-def test_runs_on_the_stitched_start_skip_the_stitch(
+def test_runs_on_the_stitched_start_skip_the_stitch_and_others_make_it(
     backend: str, single: bool, sets: list[str]
 ) -> None:
     job = ks.Job(2, 0, 5, ks.Perturbation(), {}, backend, "x", 10.0, single)

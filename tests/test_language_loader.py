@@ -81,9 +81,14 @@ def test_square_knot_is_a_simple_knot_then_its_mirror() -> None:
     third = granny.states["mirrored-knot"].use
     assert third is not None
     assert third.states["under"].params.roll == pytest.approx(rolls[0] + math.pi)  # type: ignore[union-attr]
-    # the second throw does not stitch again
+    # by default the stitch is already made; with stitch=true the first throw makes it,
+    # and the second throw does not stitch again
     assert second.use.states["stitch"].enabled is False
-    assert first.use.states["stitch"].enabled is True
+    assert first.use.states["stitch"].enabled is False
+    chain = load_procedure(PROCEDURES / "square-knot.yaml", params={"stitch": True})
+    assert chain.states["simple-knot"].use.states["stitch"].enabled is True  # type: ignore[union-attr]
+    assert chain.states["mirrored-knot"].use.states["stitch"].enabled is False  # type: ignore[union-attr]
+    assert (proc.backend, chain.backend) == ("pybullet-surgical-stitched", "pybullet-surgical")
 
 
 @pytest.mark.parametrize("algorithm", [1, 2, 3])

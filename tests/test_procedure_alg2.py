@@ -188,7 +188,7 @@ def _skills(proc: Any) -> list[str]:
 @pytest.mark.parametrize("algorithm", [1, 2, 3])
 def test_the_second_throw_of_a_square_knot_makes_no_second_stitch(algorithm: int) -> None:
     proc: Any = load_procedure(
-        ROOT / "procedures" / "square-knot.yaml", params={"algorithm": algorithm}
+        ROOT / "procedures" / "square-knot.yaml", params={"algorithm": algorithm, "stitch": True}
     )
     first = proc.states["simple-knot"].use.states["stitch"]
     second = proc.states["mirrored-knot"].use.states["stitch"]
@@ -317,7 +317,9 @@ def test_the_whole_chain_from_a_real_stitch_stays_under_the_tension_limit(
     dragged the strand over the grasper's jaws to 9.88 N true here, unseen by the base
     estimates (1.19-1.88 N). Since the hook gives way at 5 N the first throw ties no knot
     from a real stitch on seeds 0 and 1 (see the README)."""
-    summary, _ = _run_on_thread(tmp_path, "square-knot.yaml", 0, [], 150, "pybullet-surgical")
+    summary, _ = _run_on_thread(
+        tmp_path, "square-knot.yaml", 0, ["stitch=true"], 150, "pybullet-surgical"
+    )
     assert summary["outcome"] != "locked"
     assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
 
