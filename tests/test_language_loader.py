@@ -122,6 +122,9 @@ def test_interrupted_suture_ties_three_stitches_5mm_apart() -> None:
     for name in ("stitch-1", "stitch-2", "stitch-3"):
         square = proc.states[name].use
         assert square is not None and square.name == "square-knot"
+        # each square knot makes its own stitch first
+        assert square.params["stitch"] is True
+        assert square.states["simple-knot"].use.states["stitch"].enabled is True  # type: ignore[union-attr]
         entries.append(proc.scene.tissue.points[square.params["entry"]])
     xs = [e[0] for e in entries]
     assert xs[1] - xs[0] == pytest.approx(0.005) and xs[2] - xs[1] == pytest.approx(0.005)
