@@ -10,7 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from backends.pybullet.backend import PyBulletBackend, SurgicalPyBulletBackend
+from backends.pybullet.backend import (
+    PyBulletBackend,
+    StitchedSurgicalPyBulletBackend,
+    SurgicalPyBulletBackend,
+)
 from backends.pybullet.tools import Grasper, JawState, Stitcher
 from suture_engine.language.loader import load_procedure
 from suture_engine.robot.endobot import gravity_vector
@@ -448,3 +452,21 @@ def test_both_backends_start_the_grasper_on_the_needle_starts_tail_end() -> None
     finally:
         robots.close()
         surgical.close()
+
+
+def test_both_backends_start_the_stitcher_with_the_needle_in_jaw_1() -> None:
+    """Every surgical start has the needle in the stitcher's jaw 1 (the stitched start
+    included); the robots-only backend, with no needle, reports the same jaws, so that a
+    procedure that starts by passing the needle (a knot on a stitch already made) runs
+    on both."""
+    scene = load_procedure(PROCS.parent.parent / "procedures" / "stitch.yaml").scene
+    backends = (PyBulletBackend(), SurgicalPyBulletBackend(), StitchedSurgicalPyBulletBackend())
+    try:
+        for be in backends:
+            tool = be.reset(scene, 0).robots["endobot_1"].tool
+            assert (tool.kind, tool.jaw_closed, tool.jaw2_closed) == ("stitcher", True, False)
+            # and stays so until a command opens it
+            assert be.observe().robots["endobot_1"].tool.jaw_closed
+    finally:
+        for be in backends:
+            be.close()

@@ -296,7 +296,10 @@ class PyBulletBackend:
                 if self.friction_scale != 1.0:
                     sim.scale_friction(self.friction_scale)
                 self.robots[name] = sim
-                self._tools[name] = self._start_bend(ToolState(kind=tool))
+                # a stitcher starts with the needle in jaw 1, as on every surgical start
+                # (the thread is not simulated here, the jaw that holds the needle is)
+                start_tool = ToolState(kind=tool, jaw_closed=tool == "stitcher")
+                self._tools[name] = self._start_bend(start_tool)
                 base_positions[name] = (float(pos[0]), float(pos[1]), float(pos[2]))
         # One step held by gravity torques so the base sensors read the weight (PyBullet
         # computes joint reaction forces in the step), then put the joints back.
