@@ -340,11 +340,33 @@ def test_a_second_throw_that_is_not_mirrored_ties_a_granny_knot(tmp_path: Path) 
 
 @pytest.mark.slow
 def test_algorithm_2_ties_a_square_knot_on_the_surgical_backend(tmp_path: Path) -> None:
-    """The main job on the thread, from the stitched start (seed 1): the first throw, then
-    its mirror image, and the ground-truth classifier finds a square knot (determinant 9,
-    v3 0: two trefoils of opposite handedness) that binds the stitch, with the true
-    tension under the derived limit all along."""
+    """The main job's procedure on the thread, from the stitched start (seed 1, which lies
+    square): the first throw, then its mirror image, and the ground-truth classifier
+    finds a square knot (determinant 9, v3 0: two trefoils of opposite handedness) that
+    binds the stitch, with the true tension under the derived limit all along."""
     summary, knot = _run_on_thread(tmp_path, "square-knot.yaml", 1, ["stitch=false"], 220)
+    assert summary["outcome"] == "succeeded"
+    assert knot["type"] == "square" and knot["determinant"] == 9 and knot["v3"] == 0
+    assert knot["through_tissue"]
+    assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
+
+
+@pytest.mark.slow
+def test_the_readme_main_job_ties_a_square_knot(tmp_path: Path) -> None:
+    """``suture run procedures/square-knot.yaml`` as the README gives it (no option): the
+    procedure's own backend (the stitched start) and seed 0. It ends ``succeeded`` with a
+    square knot that binds the stitch, the true tension under the limit all along."""
+    import json
+    import subprocess
+    import sys
+
+    out = tmp_path / "main"
+    cmd = [sys.executable, "-m", "suture_engine.cli", "run", "procedures/square-knot.yaml"]
+    res = subprocess.run([*cmd, "--out", str(out)], cwd=ROOT, capture_output=True, text=True)
+    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["backend"] == "pybullet-surgical-stitched" and summary["seed"] == 0
+    knot = summary["knot"]
     assert summary["outcome"] == "succeeded"
     assert knot["type"] == "square" and knot["determinant"] == 9 and knot["v3"] == 0
     assert knot["through_tissue"]
