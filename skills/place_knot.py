@@ -74,6 +74,12 @@ class PlaceKnotParams(SkillParams):
     """Pulling angle beta [rad], or ``min`` for the minimum-tension choice."""
     speed: Speed = Field(default=0.005, gt=0.0, le=0.1)
     """Knot sliding speed [m/s]."""
+    seat_tension: Force | None = Field(default=None, gt=0.0)
+    """The knot is taken as seated once the tension estimated from either tool's base
+    force/torque sensor along its strand (7.6-7.10, tared as the slide starts) reaches
+    this [N]: the tools stop where they are, short of the trajectories' ends (the strands
+    were shorter than predicted from the tool tips), and the skill succeeds. None: the
+    skill succeeds only at the ends."""
 
 
 class PlaceKnot(Skill):
@@ -115,6 +121,7 @@ class PlaceKnot(Skill):
         self._pb: Any = None
         self._n: Any = None
         self._result: dict[str, float] = {}
+        self._estimators: list[Any] = []
 
     def start(self, ctx: Any) -> None:
         """Predict the knot, compute the end trajectories (4.36-4.40) and plan both tools.
@@ -134,6 +141,7 @@ class PlaceKnot(Skill):
         self._t0 = ctx.t0
         self._failure = ""
         self._result = {}
+        self._estimators = []
         site, self._pa, self._pb = wound_points(ctx, p.site)
         normal = np.asarray(ctx.start.scene.tissue_normal, dtype=float)
         if ctx.scene is not None:
@@ -220,6 +228,8 @@ class PlaceKnot(Skill):
         )
         from suture_engine.suture.knot import placement_error
 
+        p = self.params
+        assert isinstance(p, PlaceKnotParams)
         grip = ToolCommand(jaw_closed=True)
         if self._failure:
             cmd = Command(
@@ -239,6 +249,19 @@ class PlaceKnot(Skill):
                 done_all = done_all and done
             commands[robot] = RobotCommand.position(q, qd, grip)
         cmd = Command(commands)
+        if p.seat_tension is not None and t >= t_approach:
+            seated = self._seated(ctx, obs, p.seat_tension)
+            if seated is not None:
+                hold = Command(
+                    {r: RobotCommand.position(c.q, None, grip) for r, c in commands.items()}
+                )
+                self._result = {
+                    "knot_placement_seat_tension_N": seated,
+                    "knot_placement_slide_fraction": min(
+                        1.0, (t - t_approach) / self._paths[0][1].duration
+                    ),
+                }
+                return StepResult(hold, SkillStatus.SUCCESS)
         if not done_all:
             return StepResult(cmd)
         traj = self.trajectory
@@ -264,6 +287,32 @@ class PlaceKnot(Skill):
             "knot_placement_min_beta_max_rad": float(np.min(traj.beta_max)),
         }
         return StepResult(cmd, SkillStatus.SUCCESS)
+
+    def _seated(self, ctx: Any, obs: Any, seat: float) -> float | None:
+        """The largest strand tension estimate [N] once it reaches ``seat``, else None. The
+        estimators (one per tool, along the pull from the predicted knot to the tool tip at
+        the slide's start) are set up and tared on the slide's first tick."""
+        import numpy as np
+
+        from suture_engine.suture.tension import mounted_estimator
+
+        if not self._estimators:
+            traj = self.trajectory
+            for robot, base, ends in zip(
+                self._robots, self._bases, (traj.end1, traj.end2), strict=True
+            ):
+                pull = np.asarray(ends[0], float) - np.asarray(traj.knot[0], float)
+                ro = obs.robots[robot]
+                est, _ = mounted_estimator(
+                    None if base is None else base[1], pull, ro.base_wrench, ro.q, ctx.dt, 20.0
+                )
+                self._estimators.append(est)
+            return None
+        top = max(
+            est.update(obs.robots[r].base_wrench, obs.robots[r].q).tension
+            for est, r in zip(self._estimators, self._robots, strict=True)
+        )
+        return float(top) if top >= seat else None
 
     def metrics(self) -> dict[str, float]:
         """The predicted knot placement error (4.5.1) [m] and the pulling angles [rad]."""

@@ -579,6 +579,71 @@ def test_place_knot_slides_the_knot_down_keeping_strand_lengths(scene: Any) -> N
     assert m["knot_placement_beta_rad"] == 0.0
 
 
+def _sensor(scene: Any, robot: str, q: Any, force_world: Any) -> np.ndarray:
+    """The base sensor's reading of a robot at rest at ``q`` with ``force_world`` [N] on its
+    tool tip: gravity (the mounted model) less the tip force's wrench about the base."""
+    import dataclasses
+
+    from suture_engine.robot.endobot import E1
+    from suture_engine.suture.tension import gravity_wrench
+
+    _, rot = base_pose(scene, robot)
+    r = np.array(rot).reshape(3, 3)
+    g = r.T @ np.array([0.0, 0.0, -9.81])
+    prm = dataclasses.replace(E1, gravity=(float(g[0]), float(g[1]), float(g[2])))
+    f = r.T @ np.asarray(force_world, float)
+    arm = forward_kinematics(q).position
+    return gravity_wrench(q, prm) - np.concatenate([f, np.cross(arm, f)])
+
+
+def test_place_knot_stops_where_the_knot_seats(scene: Any) -> None:
+    """With ``seat_tension``, the slide stops, done, once a strand's tension estimated from
+    the base sensor reaches it: here the loop strand goes taut (2 N, pulling the stitcher
+    back towards the knot) halfway along the slide; the tools stop there."""
+    site = np.array(scene.tissue.points["knot_2"])
+    qs = {
+        "endobot_1": q_at(scene, "endobot_1", site + np.array((0.0, -0.02, 0.01))),
+        "endobot_2": q_at(scene, "endobot_2", site + np.array((0.0, 0.02, 0.01))),
+    }
+    tools = {"endobot_1": ToolState("stitcher", True), "endobot_2": ToolState("hook-grasper", True)}
+    params = {"post": "grasper", "loop": "stitcher", "site": "knot_2", "speed": 0.01}
+    skill = PlaceKnot({**params, "seat_tension": 1.5})
+    poses = {n: base_pose(scene, n) for n in scene.robots}
+    knot = site + np.array((0.0, 0.0, 0.01))
+
+    def obs_at(t: float) -> Observation:
+        robots = {}
+        for n, q in qs.items():
+            tip_now = tip(scene, n, q)
+            pull = tip_now - knot
+            taut = n == "endobot_1" and abs(tip_now[1] - site[1]) > 0.0235
+            force = -2.0 * pull / np.linalg.norm(pull) if taut else np.zeros(3)
+            wrench = _sensor(scene, n, q, force)
+            robots[n] = RobotObservation(np.array(q, float), np.zeros(4), wrench, tools[n])
+        return Observation(round(t / DT), t, robots, SceneGeometry())
+
+    obs = obs_at(0.0)
+    ctx = SkillContext("step", ROLES, DT, obs, scene, {}, poses)
+    skill.start(ctx)
+    t, result = 0.0, skill.step(ctx, obs)
+    while result.status is SkillStatus.RUNNING and t < 30.0:
+        for n, rc in result.command.robots.items():
+            qs[n] = np.array(rc.q)
+        t += DT
+        result = skill.step(ctx, obs_at(t))
+    assert result.status is SkillStatus.SUCCESS, result.message
+    m = skill.metrics()
+    assert 1.5 <= m["knot_placement_seat_tension_N"] < 2.1
+    assert 0.05 < m["knot_placement_slide_fraction"] < 0.95
+    # stopped where the strand went taut, short of the trajectory's end
+    stop = tip(scene, "endobot_1", qs["endobot_1"])
+    assert abs(stop[1] - site[1]) == pytest.approx(0.0235, abs=1e-3)
+    end = skill.trajectory.end2[-1]
+    assert abs(end[1] - site[1]) > abs(stop[1] - site[1]) + 1e-3
+    # the hold command is the position reached, at rest
+    assert all(rc.qd is None for rc in result.command.robots.values())
+
+
 def test_place_knot_fails_when_the_pulling_angle_sticks(scene: Any) -> None:
     site = np.array(scene.tissue.points["knot_2"])
     qs = {
