@@ -30,7 +30,7 @@ from pydantic import Field
 
 from skills.base import Skill, SkillNotAvailable, SkillParams
 from suture_engine.language.refs import PointRef, RoleRef
-from suture_engine.language.units import Damping, Duration, Force, Unit
+from suture_engine.language.units import Damping, Duration, Force, Length, Unit
 
 if TYPE_CHECKING:
     from suture_engine.validation.problem import Problem
@@ -62,6 +62,10 @@ class TensionRegulateParams(SkillParams):
     """How long the tension is held once reached [s]."""
     timeout: Duration = Field(default=30.0, gt=0.0, le=600.0)
     """Longest time to reach and hold the tension [s]."""
+    max_travel: Length | None = Field(default=None, gt=0.0)
+    """Longest pull [m]: the skill fails once the tip has moved this far along the pulling
+    direction from where it started (a strand that keeps giving is slipping through the
+    knot or the grip, not being secured). None: no bound."""
 
 
 class TensionRegulate(Skill):
@@ -115,6 +119,9 @@ class TensionRegulate(Skill):
         self._peak = 0.0
         self._last = 0.0
         self._error = ""
+        self._tip0: Any = None
+        self._e_base: Any = None
+        self._travel = 0.0
 
     def start(self, ctx: Any) -> None:
         """Set up the direction rule, the tension estimator and the hybrid controller.
@@ -172,9 +179,12 @@ class TensionRegulate(Skill):
         force_dt = 2.0 * ctx.dt if ctx.dt < 1.5e-3 else ctx.dt
         force = ExplicitForceController(p.kp, p.ki, p.kv, force_dt, limit=self._limit)
         ramp = ModifiedForceReference(p.tension, dt=force_dt) if p.ramp else None
+        self._tip0 = endobot.forward_kinematics(q0).position
+        self._e_base = e_base
+        self._travel = 0.0
         self._ctrl = HybridForcePositionController(
             e_base,
-            endobot.forward_kinematics(q0).position,
+            self._tip0,
             force,
             prm,
             dt=ctx.dt,
@@ -223,6 +233,18 @@ class TensionRegulate(Skill):
                 SkillStatus.FAILURE,
                 f"estimated tension {tension:.2f} N above the limit {self._limit:.2f} N",
             )
+        if p.max_travel is not None:
+            from suture_engine.robot import endobot
+
+            tip = endobot.forward_kinematics(ro.q).position
+            self._travel = float((tip - self._tip0) @ self._e_base)
+            if self._travel > p.max_travel:
+                return StepResult(
+                    command,
+                    SkillStatus.FAILURE,
+                    f"pulled {self._travel * 1e3:.1f} mm, past max_travel "
+                    f"{p.max_travel * 1e3:.1f} mm, at {tension:.2f} N",
+                )
         if abs(tension - p.tension) <= self.TOLERANCE * p.tension:
             if self._inside_since is None:
                 self._inside_since = t

@@ -45,6 +45,7 @@ def _run(
     seconds: float,
     site: str | None = None,
     scene: SimpleNamespace | None = None,
+    max_travel: float | None = None,
 ) -> tuple[list[SkillStatus], float, TensionRegulate]:
     from backends.pybullet.robot import EndoBotSim
     from suture_engine.robot import endobot
@@ -75,7 +76,7 @@ def _run(
         )
         params = TensionRegulateParams(
             robot="grasper", tension=10.0, throw=throw, kp=0.3, ki=0.5, kv=1000.0, ramp=False,
-            hold_time=0.5, timeout=seconds, site=site,
+            hold_time=0.5, timeout=seconds, site=site, max_travel=max_travel,
         )  # fmt: skip
         skill = TensionRegulate(params)
         skill.start(ctx)
@@ -161,3 +162,15 @@ def test_an_unknown_site_fails_with_the_names_it_knows() -> None:
     assert res.status is SkillStatus.FAILURE
     assert "securing direction" in res.message and "knot_2" in res.message
     assert "knot_1" in res.message
+
+
+def test_a_pull_past_max_travel_fails_before_the_strand_is_taut() -> None:
+    """The strand has 5 mm of slack: bounded at 2 mm the pull stops, failed, with the
+    suture still slack; bounded at 20 mm it reaches and holds the tension as without."""
+    statuses, true_tension, skill = _run(throw=1, seconds=8.0, max_travel=0.002)
+    assert statuses[-1] is SkillStatus.FAILURE
+    assert true_tension == 0.0
+    assert 0.002 < skill._travel < 0.003
+    statuses, true_tension, _ = _run(throw=1, seconds=8.0, max_travel=0.02)
+    assert statuses[-1] is SkillStatus.SUCCESS
+    assert true_tension == pytest.approx(10.0, rel=0.08)
