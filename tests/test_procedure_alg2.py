@@ -355,7 +355,8 @@ def test_algorithm_2_ties_a_square_knot_on_the_surgical_backend(tmp_path: Path) 
 def test_the_readme_main_job_ties_a_square_knot(tmp_path: Path) -> None:
     """``suture run procedures/square-knot.yaml`` as the README gives it (no option): the
     procedure's own backend (the stitched start) and seed 0. It ends ``succeeded`` with a
-    square knot that binds the stitch, the true tension under the limit all along."""
+    square knot that binds the stitch and lies square (the second throw drawn along its
+    securing direction, 7.1-7.3), the true tension under the limit all along."""
     import json
     import subprocess
     import sys
@@ -369,7 +370,7 @@ def test_the_readme_main_job_ties_a_square_knot(tmp_path: Path) -> None:
     knot = summary["knot"]
     assert summary["outcome"] == "succeeded"
     assert knot["type"] == "square" and knot["determinant"] == 9 and knot["v3"] == 0
-    assert knot["through_tissue"]
+    assert knot["through_tissue"] and knot["lay"] == "square" and knot["post_straight"]
     assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
 
 
