@@ -120,7 +120,6 @@ class TensionRegulate(Skill):
         self._last = 0.0
         self._error = ""
         self._tip0: Any = None
-        self._e_base: Any = None
         self._travel = 0.0
 
     def start(self, ctx: Any) -> None:
@@ -180,7 +179,6 @@ class TensionRegulate(Skill):
         force = ExplicitForceController(p.kp, p.ki, p.kv, force_dt, limit=self._limit)
         ramp = ModifiedForceReference(p.tension, dt=force_dt) if p.ramp else None
         self._tip0 = endobot.forward_kinematics(q0).position
-        self._e_base = e_base
         self._travel = 0.0
         self._ctrl = HybridForcePositionController(
             e_base,
@@ -237,7 +235,7 @@ class TensionRegulate(Skill):
             from suture_engine.robot import endobot
 
             tip = endobot.forward_kinematics(ro.q).position
-            self._travel = float((tip - self._tip0) @ self._e_base)
+            self._travel = float((tip - self._tip0) @ self._est.direction)
             if self._travel > p.max_travel:
                 return StepResult(
                     command,
