@@ -10,9 +10,13 @@ and 7.41, 7.43 when the scene declares a measurement delay).
 
 Running: the pulling direction comes from the declared entry and exit points
 (:func:`suture_engine.suture.knot.securing_directions`): the stitcher holds
-the loop end, any other tool the post end. The state is assumed to start with
-the strand slack, as the experiments of 7.5.2 do: the base sensor is tared on
-the first tick, which absorbs the static frame's weight and the sensor's bias.
+the loop end, any other tool the post end. By default the state is assumed to
+start with the strand slack, as the experiments of 7.5.2 do: the base sensor is
+tared on the step's first tick, which absorbs the static frame's weight and the
+sensor's bias. After a placement the strand is already taut, and a tare there
+would zero the tension already in it; ``tare: run`` tares on the run's first
+tick instead (the robots at rest, the thread slack), and the gravity model
+carries the estimate across the change of pose since.
 The tip is held on the line through its starting position; the force loop runs
 at half the control rate (500 Hz at 1 kHz, as 7.5.1). The force command is
 saturated at the scene's tension limit (or twice the desired tension without a
@@ -62,6 +66,10 @@ class TensionRegulateParams(SkillParams):
     """How long the tension is held once reached [s]."""
     timeout: Duration = Field(default=30.0, gt=0.0, le=600.0)
     """Longest time to reach and hold the tension [s]."""
+    tare: Literal["step", "run"] = "step"
+    """Where the base sensor is tared: on the step's first tick (``step``: the strand is
+    slack there) or on the run's first tick (``run``: the strand may already be taut when
+    the step starts, e.g. after ``place-knot``)."""
     max_travel: Length | None = Field(default=None, gt=0.0)
     """Longest pull [m]: the skill fails once the tip has moved this far along the pulling
     direction from where it started (a strand that keeps giving is slipping through the
@@ -165,11 +173,18 @@ class TensionRegulate(Skill):
         loop_end = tool == "stitcher" if tool else "stitcher" in p.robot
         e_world = rule.loop_end if loop_end else rule.post_end
         base = ctx.base_poses.get(self._robot)
+        rest = start
+        if p.tare == "run":
+            if ctx.rest is None or self._robot not in ctx.rest.robots:
+                self._error = "tare: run needs the run's first observation, and there is none"
+                self._ctrl = None
+                return
+            rest = ctx.rest.robots[self._robot]
         self._est, prm = mounted_estimator(
             None if base is None else base[1],
             e_world,
-            start.base_wrench,
-            q0,
+            rest.base_wrench,
+            rest.q,
             ctx.dt,
             self.CUTOFF_HZ,
         )

@@ -174,3 +174,51 @@ def test_a_pull_past_max_travel_fails_before_the_strand_is_taut() -> None:
     statuses, true_tension, _ = _run(throw=1, seconds=8.0, max_travel=0.02)
     assert statuses[-1] is SkillStatus.SUCCESS
     assert true_tension == pytest.approx(10.0, rel=0.08)
+
+
+def _sensor(q: np.ndarray, force_world: np.ndarray) -> np.ndarray:
+    """The base sensor of an upright robot at rest at ``q`` with ``force_world`` [N] on its
+    tip: gravity (the model) less the tip force's wrench about the base."""
+    from suture_engine.robot.endobot import E1, forward_kinematics
+    from suture_engine.suture.tension import gravity_wrench
+
+    arm = forward_kinematics(q).position
+    f = np.asarray(force_world, float)
+    return gravity_wrench(q, E1) - np.concatenate([f, np.cross(arm, f)])
+
+
+@pytest.mark.parametrize(("tare", "expected"), [("run", 3.0), ("step", 0.0)])
+def test_tare_run_measures_a_strand_already_taut_at_the_start(
+    tare: Literal["step", "run"], expected: float
+) -> None:
+    """After a placement the strand is taut when the step starts (3 N here, the tools moved
+    since the run's start). ``tare: run`` measures it from the run's first tick (slack);
+    ``tare: step`` zeroes it, and would then pull 3 N more than asked."""
+    from suture_engine.suture.knot import securing_directions
+
+    e = securing_directions(np.array(ENTRY), np.array(EXIT), 1, normal=(0.0, 0.0, 1.0)).post_end
+    q_rest = np.array([0.0, 0.0, 0.0, 0.1])
+    q_now = np.array([0.15, -0.2, 0.3, 0.12])
+    rest = _observation(0, 0.0, q_rest, np.zeros(4), _sensor(q_rest, np.zeros(3)))
+    now = _observation(9000, 9.0, q_now, np.zeros(4), _sensor(q_now, -3.0 * e))
+    ctx = SkillContext(
+        step="secure", roles={"grasper": "endobot_2"}, dt=1e-3, start=now, rest=rest,
+        scene=_scene({"entry_2": ENTRY, "exit_2": EXIT, "knot_2": ENTRY}),
+    )  # fmt: skip
+    params = TensionRegulateParams(robot="grasper", tension=2.0, site="knot_2", tare=tare)
+    skill = TensionRegulate(params)
+    skill.start(ctx)
+    res = skill.step(ctx, now)
+    assert res.status is SkillStatus.RUNNING
+    assert skill.metrics()["final_tension_N"] == pytest.approx(expected, abs=1e-6)
+
+
+def test_tare_run_without_the_runs_first_tick_fails_with_a_message() -> None:
+    q = np.array([0.0, 0.0, 0.0, 0.1])
+    obs = _observation(0, 0.0, q, np.zeros(4), _sensor(q, np.zeros(3)))
+    ctx = SkillContext(step="secure", roles={"grasper": "endobot_2"}, dt=1e-3, start=obs)
+    skill = TensionRegulate(TensionRegulateParams(robot="grasper", tension=2.0, tare="run"))
+    skill.start(ctx)
+    res = skill.step(ctx, obs)
+    assert res.status is SkillStatus.FAILURE
+    assert "tare: run" in res.message

@@ -24,6 +24,8 @@ class SkillContext:
         params: the procedure's resolved parameters (SI).
         base_poses: robot -> (base position [m], base rotation matrix row-major 3x3) in the
             world frame; the base origin is the RCM.
+        rest: the run's first observation: the robots at rest with the thread slack, where
+            the run's own tension estimate is tared (None outside a run).
     """
 
     step: str
@@ -35,6 +37,7 @@ class SkillContext:
     base_poses: Mapping[str, tuple[tuple[float, float, float], tuple[float, ...]]] = field(
         default_factory=dict
     )
+    rest: Observation | None = None
 
     @property
     def t0(self) -> float:

@@ -173,6 +173,7 @@ class Interpreter:
         self.metrics: dict[str, Any] = {}
         self._pending_meas: Measurement | None = first
         self._obs: Observation | None = None
+        self._rest: Observation | None = None  # the first tick's: at rest, thread slack
         self._qp_failures: dict[str, int] = {r: 0 for r in self.robots}
         self.tick_index = 0
         self.wall_time_s = 0.0
@@ -208,6 +209,7 @@ class Interpreter:
             scene=self.scene,
             params=self.params,
             base_poses=self._base_poses(),
+            rest=self._rest,
         )
         start = getattr(skill, "start", None)
         if start is not None:
@@ -481,6 +483,8 @@ class Interpreter:
             return False
         meas, obs = self._observe()
         self._obs = obs
+        if self.tick_index == 0:
+            self._rest = obs
         self._tension = tension = self.tension.estimate(obs)
         time_ns = self.tick_index * self.period_ns
         a = self.automaton
