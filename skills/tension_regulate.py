@@ -62,6 +62,10 @@ class TensionRegulateParams(SkillParams):
     """Active damping gain Kv [N*s/m] (7.30)."""
     ramp: bool = True
     """Use the modified (ramped) force reference of Fig. 7.29."""
+    ramp_lead: Force = Field(default=5.0, gt=0.0)
+    """How far the ramped reference leads the measured tension [N] (Fig. 7.29: 5 N). It
+    bounds the force error, and so the integral's wind-up, while the strand is slack; a
+    lead above the desired tension leaves the reference at that tension from the start."""
     hold_time: Duration = Field(default=2.0, gt=0.0, le=60.0)
     """How long the tension is held once reached [s]."""
     timeout: Duration = Field(default=30.0, gt=0.0, le=600.0)
@@ -192,7 +196,7 @@ class TensionRegulate(Skill):
         self._limit = float(ctx.scene.tension_limit) if ctx.scene is not None else 2.0 * p.tension
         force_dt = 2.0 * ctx.dt if ctx.dt < 1.5e-3 else ctx.dt
         force = ExplicitForceController(p.kp, p.ki, p.kv, force_dt, limit=self._limit)
-        ramp = ModifiedForceReference(p.tension, dt=force_dt) if p.ramp else None
+        ramp = ModifiedForceReference(p.tension, p.ramp_lead, dt=force_dt) if p.ramp else None
         self._tip0 = endobot.forward_kinematics(q0).position
         self._travel = 0.0
         self._ctrl = HybridForcePositionController(

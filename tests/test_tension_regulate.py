@@ -46,6 +46,8 @@ def _run(
     site: str | None = None,
     scene: SimpleNamespace | None = None,
     max_travel: float | None = None,
+    ramp_lead: float | None = None,
+    peak: list[float] | None = None,
 ) -> tuple[list[SkillStatus], float, TensionRegulate]:
     from backends.pybullet.robot import EndoBotSim
     from suture_engine.robot import endobot
@@ -75,8 +77,9 @@ def _run(
             scene=scene,
         )
         params = TensionRegulateParams(
-            robot="grasper", tension=10.0, throw=throw, kp=0.3, ki=0.5, kv=1000.0, ramp=False,
+            robot="grasper", tension=10.0, throw=throw, kp=0.3, ki=0.5, kv=1000.0,
             hold_time=0.5, timeout=seconds, site=site, max_travel=max_travel,
+            ramp=ramp_lead is not None, ramp_lead=ramp_lead or 5.0,
         )  # fmt: skip
         skill = TensionRegulate(params)
         skill.start(ctx)
@@ -93,6 +96,8 @@ def _run(
             span = anchor - tip
             dist = float(np.linalg.norm(span))
             true_tension = max(0.0, k * (dist - length))
+            if peak is not None:
+                peak[0] = max(peak[0], true_tension)
             if true_tension > 0.0:
                 pb.applyExternalForce(
                     sim.body_id, sim.tool_link, (true_tension * span / dist).tolist(),
@@ -222,3 +227,19 @@ def test_tare_run_without_the_runs_first_tick_fails_with_a_message() -> None:
     res = skill.step(ctx, obs)
     assert res.status is SkillStatus.FAILURE
     assert "tare: run" in res.message
+
+
+def test_a_small_ramp_lead_keeps_the_slack_pull_from_winding_up() -> None:
+    """From 5 mm of slack, the ramped reference (Fig. 7.29) with the thesis' 5 N lead lets
+    the force error, and the integral, build while the strand is slack (a 3 % overshoot
+    of the suture's own tension here); a 2 N lead bounds it: the pull is slower (11.7 s
+    against 9.3 s) and does not overshoot."""
+    peaks = {}
+    for lead in (5.0, 2.0):
+        peak = [0.0]
+        statuses, true_tension, _ = _run(throw=1, seconds=20.0, ramp_lead=lead, peak=peak)
+        assert statuses[-1] is SkillStatus.SUCCESS
+        assert true_tension == pytest.approx(10.0, rel=0.08)
+        peaks[lead] = peak[0]
+    assert peaks[5.0] > 10.0 * 1.02
+    assert peaks[2.0] < 10.0
