@@ -224,17 +224,16 @@ class PlaceKnot(Skill):
             RobotCommand,
             SkillStatus,
             StepResult,
-            ToolCommand,
         )
         from suture_engine.suture.knot import placement_error
 
         p = self.params
         assert isinstance(p, PlaceKnotParams)
-        grip = ToolCommand(jaw_closed=True)
+        # no tool command: each tool keeps its grip as it is (the stitcher may hold its
+        # strand by the needle in either jaw; closing jaw 1 as well left both closed after a
+        # first throw, and the next pass could not tell which jaw held the needle)
         if self._failure:
-            cmd = Command(
-                {r: RobotCommand.position(obs.robots[r].q, tool=grip) for r in self._robots}
-            )
+            cmd = Command({r: RobotCommand.position(obs.robots[r].q) for r in self._robots})
             return StepResult(cmd, SkillStatus.FAILURE, self._failure)
         t = obs.t - self._t0
         t_approach = max(first.duration for first, _ in self._paths)
@@ -247,14 +246,12 @@ class PlaceKnot(Skill):
             else:
                 q, qd, done = slide.sample(t - t_approach)
                 done_all = done_all and done
-            commands[robot] = RobotCommand.position(q, qd, grip)
+            commands[robot] = RobotCommand.position(q, qd)
         cmd = Command(commands)
         if p.seat_tension is not None and t >= t_approach:
             seated = self._seated(ctx, obs, p.seat_tension)
             if seated is not None:
-                hold = Command(
-                    {r: RobotCommand.position(c.q, None, grip) for r, c in commands.items()}
-                )
+                hold = Command({r: RobotCommand.position(c.q) for r, c in commands.items()})
                 self._result = {
                     "knot_placement_seat_tension_N": seated,
                     "knot_placement_slide_fraction": min(

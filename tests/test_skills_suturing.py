@@ -599,13 +599,19 @@ def _sensor(scene: Any, robot: str, q: Any, force_world: Any) -> np.ndarray:
 def test_place_knot_stops_where_the_knot_seats(scene: Any) -> None:
     """With ``seat_tension``, the slide stops, done, once a strand's tension estimated from
     the base sensor reaches it: here the loop strand goes taut (2 N, pulling the stitcher
-    back towards the knot) halfway along the slide; the tools stop there."""
+    back towards the knot) halfway along the slide; the tools stop there. The stitcher
+    holds its strand by the needle in jaw 2, as after a first throw: the skill leaves
+    both tools' jaws as they are."""
     site = np.array(scene.tissue.points["knot_2"])
     qs = {
         "endobot_1": q_at(scene, "endobot_1", site + np.array((0.0, -0.02, 0.01))),
         "endobot_2": q_at(scene, "endobot_2", site + np.array((0.0, 0.02, 0.01))),
     }
-    tools = {"endobot_1": ToolState("stitcher", True), "endobot_2": ToolState("hook-grasper", True)}
+    tools = {
+        "endobot_1": ToolState("stitcher", jaw_closed=False, jaw2_closed=True),
+        "endobot_2": ToolState("hook-grasper", True),
+    }
+    tool_commands = []
     params = {"post": "grasper", "loop": "stitcher", "site": "knot_2", "speed": 0.01}
     skill = PlaceKnot({**params, "seat_tension": 1.5})
     poses = {n: base_pose(scene, n) for n in scene.robots}
@@ -629,9 +635,11 @@ def test_place_knot_stops_where_the_knot_seats(scene: Any) -> None:
     while result.status is SkillStatus.RUNNING and t < 30.0:
         for n, rc in result.command.robots.items():
             qs[n] = np.array(rc.q)
+            tool_commands.append(rc.tool)
         t += DT
         result = skill.step(ctx, obs_at(t))
     assert result.status is SkillStatus.SUCCESS, result.message
+    assert len(tool_commands) > 1000 and all(c is None for c in tool_commands)
     m = skill.metrics()
     assert 1.5 <= m["knot_placement_seat_tension_N"] < 2.1
     assert 0.05 < m["knot_placement_slide_fraction"] < 0.95
