@@ -70,6 +70,12 @@ class TensionRegulateParams(SkillParams):
     """How long the tension is held once reached [s]."""
     timeout: Duration = Field(default=30.0, gt=0.0, le=600.0)
     """Longest time to reach and hold the tension [s]."""
+    stiction: bool = False
+    """Compensate the Coulomb friction of the joints at rest while the estimate is outside
+    the 5 % band, in the sense that moves the tip to correct it (see
+    :class:`suture_engine.control.hybrid_force.HybridForcePositionController`). Without
+    it the joints' static friction can hold the tension about 1 N from the desired one
+    until the integral has crossed it."""
     tare: Literal["step", "run"] = "step"
     """Where the base sensor is tared: on the step's first tick (``step``: the strand is
     slack there) or on the run's first tick (``run``: the strand may already be taut when
@@ -208,6 +214,7 @@ class TensionRegulate(Skill):
             roll=float(q0[2]),
             reference=ramp,
             friction=[j.friction for j in prm.joints],
+            stiction_band=self.TOLERANCE * p.tension if p.stiction else None,
         )
 
     def step(self, ctx: Any, obs: Any) -> Any:

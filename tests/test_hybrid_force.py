@@ -251,3 +251,38 @@ def test_friction_compensation_adds_the_identified_friction() -> None:
         assert extra[2] == 0.0
         smooth = fr[3].coulomb * math.tanh(0.01) + viscous * fr[3].viscous * 1e-4
         assert extra[3] == pytest.approx(smooth, rel=1e-6)
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_stiction_compensation_turns_joints_at_rest_the_way_the_tip_must_go(sign: float) -> None:
+    """At rest with the tension 0.5 N too low (sign +1: pull along e) or too high (-1),
+    outside a 0.1 N band, each joint's Coulomb friction is added in the sense that moves
+    the tip along ``sign * e``; the sense is checked on joint rates from the kinematics'
+    finite differences. Inside the band nothing is added."""
+    prm = endobot.E1
+    fr = [j.friction for j in prm.joints]
+    q = np.array([0.15, -0.2, 0.3, 0.12])
+    e = np.array([0.3, -0.8, 0.2])
+    e /= np.linalg.norm(e)
+    tip = endobot.forward_kinematics(q).position
+
+    def torque(measured: float, band: float | None) -> np.ndarray:
+        ctrl = HybridForcePositionController(
+            e, tip, ExplicitForceController(0.0, 0.0, 0.0, DT), prm, kx=0.0, dx=0.0,
+            friction=fr, stiction_band=band,
+        )  # fmt: skip
+        return ctrl.update(q, np.zeros(4), measured, 1.0).torque
+
+    extra = torque(1.0 - 0.5 * sign, 0.1) - torque(1.0 - 0.5 * sign, None)
+    h = 1e-6
+    jac = np.column_stack(
+        [(endobot.forward_kinematics(q + h * np.eye(4)[i]).position - tip) / h for i in (0, 1, 3)]
+    )
+    rates = np.linalg.solve(jac, sign * e)
+    for k, joint in enumerate((0, 1, 3)):
+        expected = fr[joint].coulomb * math.tanh(rates[k] / (0.1 * np.abs(rates).max()))
+        assert extra[joint] == pytest.approx(expected, rel=1e-3, abs=1e-9)
+        assert np.sign(extra[joint]) == np.sign(rates[k])
+    assert extra[2] == 0.0
+    inside = torque(1.05, 0.1) - torque(1.05, None)
+    assert np.all(inside == 0.0)

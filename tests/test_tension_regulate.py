@@ -48,6 +48,8 @@ def _run(
     max_travel: float | None = None,
     ramp_lead: float | None = None,
     peak: list[float] | None = None,
+    tension: float = 10.0,
+    stiction: bool = False,
 ) -> tuple[list[SkillStatus], float, TensionRegulate]:
     from backends.pybullet.robot import EndoBotSim
     from suture_engine.robot import endobot
@@ -77,9 +79,9 @@ def _run(
             scene=scene,
         )
         params = TensionRegulateParams(
-            robot="grasper", tension=10.0, throw=throw, kp=0.3, ki=0.5, kv=1000.0,
+            robot="grasper", tension=tension, throw=throw, kp=0.3, ki=0.5, kv=1000.0,
             hold_time=0.5, timeout=seconds, site=site, max_travel=max_travel,
-            ramp=ramp_lead is not None, ramp_lead=ramp_lead or 5.0,
+            ramp=ramp_lead is not None, ramp_lead=ramp_lead or 5.0, stiction=stiction,
         )  # fmt: skip
         skill = TensionRegulate(params)
         skill.start(ctx)
@@ -243,3 +245,21 @@ def test_a_small_ramp_lead_keeps_the_slack_pull_from_winding_up() -> None:
         peaks[lead] = peak[0]
     assert peaks[5.0] > 10.0 * 1.02
     assert peaks[2.0] < 10.0
+
+
+def test_stiction_compensation_reaches_a_light_tension_sooner_and_overshoots_less() -> None:
+    """1.5 N, about the static-friction window of the first joint at the tip: without the
+    compensation the joints stick and the integral must cross that window first (slow,
+    and the suture's own tension overshoots); with it the tip moves as soon as the
+    estimate leaves the 5 % band."""
+    runs = {}
+    for stiction in (False, True):
+        peak = [0.0]
+        statuses, true_tension, _ = _run(
+            throw=1, seconds=40.0, ramp_lead=1.0, peak=peak, tension=1.5, stiction=stiction
+        )
+        assert statuses[-1] is SkillStatus.SUCCESS
+        assert true_tension == pytest.approx(1.5, rel=0.08)
+        runs[stiction] = (len(statuses), peak[0])
+    assert runs[True][0] < 0.8 * runs[False][0]
+    assert runs[True][1] < runs[False][1] - 0.3

@@ -54,6 +54,8 @@ __all__ = [
 
 FloatArray = NDArray[np.float64]
 Vec = Sequence[float] | FloatArray
+_TRANSLATING = [0, 1, 3]
+"""The joints that move the tool tip (the roll, joint 3, only turns the tool)."""
 
 
 class ForceGainsError(InvalidValue):
@@ -244,6 +246,14 @@ class HybridForcePositionController:
             compensation. Coulomb friction ``Fc tanh(qdot / smoothing)`` is added.
         viscous: also compensate viscous friction ``Fv qdot``.
         smoothing: velocity scale of the smoothed sign [rad/s or m/s].
+        stiction_band: with ``friction``, a force error band [N] outside which the
+            Coulomb friction of the joints at rest is also compensated, in the sense each
+            joint must turn for the tip to move along ``+e`` (tension too low) or ``-e``
+            (too high). Without it a joint at rest stays stuck until the force command has
+            crossed the whole static-friction window (about +-1.3 N at the tip of the
+            EndoBot's first joint at 0.13 m), and the tension is held that far from its
+            reference. Inside the band nothing is added: static friction then holds the
+            tension reached. None: not compensated at rest.
 
     Raises:
         ForceGainsError: on a bad direction, negative gains or periods.
@@ -265,6 +275,7 @@ class HybridForcePositionController:
         friction: Sequence[FrictionParams] | None = None,
         viscous: bool = False,
         smoothing: float = 0.01,
+        stiction_band: float | None = None,
     ) -> None:
         self.s_force, self.s_motion = selection_matrices(direction)
         e = np.asarray(direction, dtype=float)
@@ -286,6 +297,9 @@ class HybridForcePositionController:
         self._fc = np.array([f.coulomb for f in friction]) if friction is not None else None
         self._fv = np.array([f.viscous if viscous else 0.0 for f in friction or ()])
         self.smoothing = _check("smoothing", smoothing, positive=True)
+        self.stiction_band = (
+            None if stiction_band is None else _check("stiction_band", stiction_band)
+        )
 
     def __repr__(self) -> str:
         e = ", ".join(f"{x:.3g}" for x in self.direction)
@@ -329,5 +343,14 @@ class HybridForcePositionController:
         tau[2] += self.kr * (self.roll - qa[2]) - self.dr * qda[2]
         tau += endobot.gravity_vector(qa, self.params)
         if self._fc is not None:
-            tau += self._fc * np.tanh(qda / self.smoothing) + self._fv * qda
+            moving = np.tanh(qda / self.smoothing)
+            tau += self._fc * moving + self._fv * qda
+            error = self._fr - measured
+            if self.stiction_band is not None and abs(error) > self.stiction_band:
+                # joint rates that move the tip along e (the roll moves no point of it)
+                trans = jac[:3][:, _TRANSLATING]
+                rates = np.zeros(4)
+                rates[_TRANSLATING] = np.linalg.lstsq(trans, e, rcond=None)[0]
+                sense = np.tanh(rates * math.copysign(1.0, error) / (0.1 * np.abs(rates).max()))
+                tau += self._fc * sense * (1.0 - np.abs(moving))
         return HybridCommand(tau, self._uf, self._fr, float(np.linalg.norm(across)), v_e)
