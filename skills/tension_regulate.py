@@ -71,7 +71,7 @@ class TensionRegulateParams(SkillParams):
     timeout: Duration = Field(default=30.0, gt=0.0, le=600.0)
     """Longest time to reach and hold the tension [s]."""
     stiction: bool = False
-    """Compensate the Coulomb friction of the joints at rest while the estimate is outside
+    """Compensate the static friction of the joints at rest while the estimate is outside
     the 5 % band, in the sense that moves the tip to correct it (see
     :class:`suture_engine.control.hybrid_force.HybridForcePositionController`). Without
     it the joints' static friction can hold the tension about 1 N from the desired one

@@ -256,7 +256,7 @@ def test_friction_compensation_adds_the_identified_friction() -> None:
 @pytest.mark.parametrize("sign", [1.0, -1.0])
 def test_stiction_compensation_turns_joints_at_rest_the_way_the_tip_must_go(sign: float) -> None:
     """At rest with the tension 0.5 N too low (sign +1: pull along e) or too high (-1),
-    outside a 0.1 N band, each joint's Coulomb friction is added in the sense that moves
+    outside a 0.1 N band, each joint's static friction is added in the sense that moves
     the tip along ``sign * e``; the sense is checked on joint rates from the kinematics'
     finite differences. Inside the band nothing is added."""
     prm = endobot.E1
@@ -280,7 +280,7 @@ def test_stiction_compensation_turns_joints_at_rest_the_way_the_tip_must_go(sign
     )
     rates = np.linalg.solve(jac, sign * e)
     for k, joint in enumerate((0, 1, 3)):
-        expected = fr[joint].coulomb * math.tanh(rates[k] / (0.1 * np.abs(rates).max()))
+        expected = fr[joint].static * math.tanh(rates[k] / (0.1 * np.abs(rates).max()))
         assert extra[joint] == pytest.approx(expected, rel=1e-3, abs=1e-9)
         assert np.sign(extra[joint]) == np.sign(rates[k])
     assert extra[2] == 0.0

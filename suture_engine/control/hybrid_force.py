@@ -247,9 +247,9 @@ class HybridForcePositionController:
         viscous: also compensate viscous friction ``Fv qdot``.
         smoothing: velocity scale of the smoothed sign [rad/s or m/s].
         stiction_band: with ``friction``, a force error band [N] outside which the
-            Coulomb friction of the joints at rest is also compensated, in the sense each
-            joint must turn for the tip to move along ``+e`` (tension too low) or ``-e``
-            (too high). Without it a joint at rest stays stuck until the force command has
+            static (break-away) friction of the joints at rest is also compensated, in the
+            sense each joint must turn for the tip to move along ``+e`` (tension too low)
+            or ``-e`` (too high). Without it a joint at rest stays stuck until the force command has
             crossed the whole static-friction window (about +-1.3 N at the tip of the
             EndoBot's first joint at 0.13 m), and the tension is held that far from its
             reference. Inside the band nothing is added: static friction then holds the
@@ -295,6 +295,7 @@ class HybridForcePositionController:
         self._uf = 0.0
         self._fr = 0.0
         self._fc = np.array([f.coulomb for f in friction]) if friction is not None else None
+        self._fs = np.array([f.static for f in friction]) if friction is not None else None
         self._fv = np.array([f.viscous if viscous else 0.0 for f in friction or ()])
         self.smoothing = _check("smoothing", smoothing, positive=True)
         self.stiction_band = (
@@ -352,5 +353,5 @@ class HybridForcePositionController:
                 rates = np.zeros(4)
                 rates[_TRANSLATING] = np.linalg.lstsq(trans, e, rcond=None)[0]
                 sense = np.tanh(rates * math.copysign(1.0, error) / (0.1 * np.abs(rates).max()))
-                tau += self._fc * sense * (1.0 - np.abs(moving))
+                tau += self._fs * sense * (1.0 - np.abs(moving))
         return HybridCommand(tau, self._uf, self._fr, float(np.linalg.norm(across)), v_e)
