@@ -263,3 +263,33 @@ def test_stiction_compensation_reaches_a_light_tension_sooner_and_overshoots_les
         runs[stiction] = (len(statuses), peak[0])
     assert runs[True][0] < 0.8 * runs[False][0]
     assert runs[True][1] < runs[False][1] - 0.3
+
+
+@pytest.mark.parametrize(("tolerance", "held"), [(0.1, True), (0.05, False)])
+def test_the_tolerance_band_decides_what_counts_as_held(tolerance: float, held: bool) -> None:
+    """A strand held at 1.6 N (a tip stuck by static friction) against 1.5 N asked: inside
+    a 10 % band that is held, outside a 5 % one the step times out."""
+    from suture_engine.suture.knot import securing_directions
+
+    e = securing_directions(np.array(ENTRY), np.array(EXIT), 1, normal=(0.0, 0.0, 1.0)).post_end
+    q = np.array([0.15, -0.2, 0.3, 0.12])
+    obs = _observation(0, 0.0, q, np.zeros(4), _sensor(q, -1.6 * e))
+    rest = _observation(0, 0.0, q, np.zeros(4), _sensor(q, np.zeros(3)))
+    ctx = SkillContext(
+        step="secure", roles={"grasper": "endobot_2"}, dt=1e-3, start=obs, rest=rest,
+        scene=_scene({"entry_2": ENTRY, "exit_2": EXIT, "knot_2": ENTRY}),
+    )  # fmt: skip
+    params = TensionRegulateParams(
+        robot="grasper", tension=1.5, site="knot_2", tare="run", tolerance=tolerance,
+        hold_time=0.5, timeout=1.0,
+    )  # fmt: skip
+    skill = TensionRegulate(params)
+    skill.start(ctx)
+    for tick in range(1, 1200):
+        o = _observation(tick, tick * 1e-3, q, np.zeros(4), obs.robots["endobot_2"].base_wrench)
+        res = skill.step(ctx, o)
+        if res.status is not SkillStatus.RUNNING:
+            break
+    assert res.status is (SkillStatus.SUCCESS if held else SkillStatus.FAILURE)
+    assert ("within" in res.message) is not held
+    assert tick == pytest.approx(500 if held else 1000, abs=2)
