@@ -8,9 +8,10 @@ The knot is not measured. Its start is predicted from the two tool tips: at
 the height of their midpoint, on the normal through the seat point p_0 =
 (p_a + p_b)/2. The post end (strand anchored at the entry point p_a, 7.1)
 follows ``end1`` of :func:`suture_engine.suture.knot.placement_trajectory`,
-the loop end (anchored at p_b) ``end2``. The tools first move straight to the
-trajectories' starts, then follow them with minimum-jerk timing whose peak
-knot sliding rate is ``speed``.
+the loop end (anchored at p_b) ``end2``; on a square knot's second throw
+(``throw: 2``) the anchors are the other way round (7.1-7.3). The tools first
+move straight to the trajectories' starts, then follow them with minimum-jerk
+timing whose peak knot sliding rate is ``speed``.
 """
 
 from __future__ import annotations
@@ -74,6 +75,11 @@ class PlaceKnotParams(SkillParams):
     """Pulling angle beta [rad], or ``min`` for the minimum-tension choice."""
     speed: Speed = Field(default=0.005, gt=0.0, le=0.1)
     """Knot sliding speed [m/s]."""
+    throw: Literal[1, 2] = 1
+    """Which throw of a square knot is placed. On the second the strands leave the knot the
+    other way round (7.1-7.3): the post strand is anchored at the exit point and pulled
+    towards the entry's side, the loop strand anchored at the entry and pulled towards
+    the exit's side."""
     seat_tension: Force | None = Field(default=None, gt=0.0)
     """The knot is taken as seated once the tension estimated from either tool's base
     force/torque sensor along its strand (7.6-7.10, tared as the slide starts) reaches
@@ -158,10 +164,10 @@ class PlaceKnot(Skill):
             float(np.linalg.norm(tips[0] - knot0)),
             float(np.linalg.norm(tips[1] - knot0)),
         )
+        anchors = (self._pa, self._pb) if p.throw == 1 else (self._pb, self._pa)
         try:
             self.trajectory = placement_trajectory(
-                self._pa,
-                self._pb,
+                *anchors,
                 knot0,
                 self._n,
                 rate=1.0,

@@ -579,6 +579,41 @@ def test_place_knot_slides_the_knot_down_keeping_strand_lengths(scene: Any) -> N
     assert m["knot_placement_beta_rad"] == 0.0
 
 
+def test_place_knot_second_throw_pulls_the_strands_the_other_way(scene: Any) -> None:
+    """On a square knot's second throw (7.1-7.3) the loop strand (stitcher) is anchored at
+    the entry point and pulled towards the exit's side, the post strand (grasper) the other
+    way; each strand's length is kept with those anchors."""
+    site = np.array(scene.tissue.points["knot_2"])
+    pa = np.array(scene.tissue.points["entry_2"])
+    pb = np.array(scene.tissue.points["exit_2"])
+    qs = {
+        "endobot_1": q_at(scene, "endobot_1", site + np.array((0.0, 0.02, 0.01))),
+        "endobot_2": q_at(scene, "endobot_2", site + np.array((0.0, -0.02, 0.01))),
+    }
+    tools = {
+        "endobot_1": ToolState("stitcher", jaw_closed=False, jaw2_closed=True),
+        "endobot_2": ToolState("hook-grasper", jaw_closed=True),
+    }
+    params = {"post": "grasper", "loop": "stitcher", "site": "knot_2", "speed": 0.01}
+    skill = PlaceKnot({**params, "throw": 2})
+    run = Run(skill, scene, qs, tools)
+    assert run.status is SkillStatus.SUCCESS, run.message
+    knot0 = site + np.array((0, 0, 0.01))
+    knot1 = site + np.array((0, 0, PlaceKnot.SEAT_HEIGHT))
+    for robot, anchor, side in (("endobot_2", pb, pa), ("endobot_1", pa, pb)):
+        start = tip(scene, robot, run.q(robot)[0])
+        end = tip(scene, robot, run.q(robot)[-1])
+        before = np.linalg.norm(start - knot0) + np.linalg.norm(knot0 - anchor)
+        after = np.linalg.norm(end - knot1) + np.linalg.norm(knot1 - anchor)
+        assert after == pytest.approx(before, abs=1e-5)
+        # pulled away from the knot towards ``side``
+        assert np.sign(end[1] - site[1]) == np.sign(side[1] - site[1])
+        assert abs(end[1] - site[1]) > abs(start[1] - site[1])
+    # as a first throw, the stitcher would be drawn back across the knot to the entry's side
+    first = Run(PlaceKnot(params), scene, dict(qs), tools)
+    assert tip(scene, "endobot_1", first.q("endobot_1")[-1])[1] < site[1]
+
+
 def _sensor(scene: Any, robot: str, q: Any, force_world: Any) -> np.ndarray:
     """The base sensor's reading of a robot at rest at ``q`` with ``force_world`` [N] on its
     tool tip: gravity (the mounted model) less the tip force's wrench about the base."""
