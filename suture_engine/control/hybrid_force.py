@@ -249,10 +249,10 @@ class HybridForcePositionController:
         stiction_band: with ``friction``, a force error band [N] outside which the
             static (break-away) friction of the joints at rest is also compensated, in the
             sense each joint must turn for the tip to move along ``+e`` (tension too low)
-            or ``-e`` (too high). Without it a joint at rest stays stuck until the force command has
-            crossed the whole static-friction window (about +-1.3 N at the tip of the
-            EndoBot's first joint at 0.13 m), and the tension is held that far from its
-            reference. Inside the band nothing is added: static friction then holds the
+            or ``-e`` (too high). Without it a joint at rest stays stuck until the force
+            command has crossed the whole static-friction window (about +-1.3 N at the
+            tip of the EndoBot's first joint at 0.13 m), and the tension is held that far
+            from its reference. Inside the band nothing is added: static friction then holds the
             tension reached. None: not compensated at rest.
 
     Raises:
