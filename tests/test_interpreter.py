@@ -459,3 +459,31 @@ def test_when_false_skips_skill_and_use_states_and_says_so(tmp_path: Path, extra
     assert result.summary.sim_time_s == pytest.approx(0.05, abs=0.005)
     plan = compile_procedure(load(PROCS / "when.yaml").procedure)
     assert not any(name.startswith("maybe-use.") for name in plan.steps)
+
+
+def test_every_step_gets_the_runs_first_observation_as_its_rest() -> None:
+    """``SkillContext.rest`` is the run's first tick (where the run's tension estimate is
+    tared), for the first step and a later one alike; ``start`` is each step's own."""
+    contexts: list[Any] = []
+
+    class Spy(ScriptedSkill):
+        def start(self, ctx: Any) -> None:
+            contexts.append(ctx)
+            super().start(ctx)
+
+    plan = Plan(
+        "p",
+        "a",
+        {
+            "a": StepSpec("a", lambda: Spy("a", "success", after_s=0.05), "b"),
+            "b": StepSpec("b", lambda: Spy("b", "success", after_s=0.05), "end"),
+        },
+        {"end": Outcome.SUCCEEDED},
+    )
+    be = IdealBackend(q0={"endobot_1": (0.0, 0.2, 0.0, 0.12)})
+    it = Interpreter(plan, be, be.reset())
+    it.run("p", "ideal")
+    assert [c.step for c in contexts] == ["a", "b"]
+    first, second = contexts
+    assert first.rest is not None and first.rest.tick == 0 and first.start.tick == 0
+    assert second.rest is first.rest and second.start.tick > 40

@@ -483,12 +483,11 @@ class Interpreter:
             return False
         meas, obs = self._observe()
         self._obs = obs
-        if self.tick_index == 0:
-            self._rest = obs
         self._tension = tension = self.tension.estimate(obs)
         time_ns = self.tick_index * self.period_ns
         a = self.automaton
         if self.tick_index == 0:
+            self._rest = obs
             self._record_transitions(time_ns, a.start())
         if self._backend_events is not None:
             self._record_backend_events(time_ns)
