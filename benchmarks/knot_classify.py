@@ -26,6 +26,8 @@ CASES = {
     "figure-eight": (lambda: curves.figure_eight(400), ("figure-eight", None)),
     "square": (lambda: curves.square_knot(300), ("square", None)),
     "granny (left)": (lambda: curves.granny_knot(300, right=False), ("granny", "left")),
+    "double overhand (right)": (lambda: curves.overhand(2, n=40), ("double-overhand", "right")),
+    "surgeon's knot": (lambda: curves.surgeons_knot(), ("surgeons", "right")),
     "wobbly unknot": (lambda: curves.wobbly_unknot(400), ("unknot", None)),
 }
 

@@ -47,6 +47,32 @@ CASES = {
     ),
     "right granny": (lambda: curves.granny_knot(right=True), "granny", "right", 9, 2, 2),
     "left granny": (lambda: curves.granny_knot(right=False), "granny", "left", 9, 2, -2),
+    "right double overhand": (lambda: curves.overhand(2), "double-overhand", "right", 5, 3, 5),
+    "left double overhand": (
+        lambda: curves.overhand(2, right=False),
+        "double-overhand",
+        "left",
+        5,
+        3,
+        -5,
+    ),
+    "surgeon's knot": (curves.surgeons_knot, "surgeons", "right", 15, 4, 4),
+    "surgeon's knot, left first": (
+        lambda: curves.surgeons_knot(right_first=False),
+        "surgeons",
+        "left",
+        15,
+        4,
+        -4,
+    ),
+    "surgeon's granny": (
+        lambda: curves.surgeons_knot(mirrored=False),
+        "surgeons-granny",
+        "right",
+        15,
+        4,
+        6,
+    ),
     "wobbly unknot": (curves.wobbly_unknot, "unknot", None, 1, 0, 0),
     "half hitches": (curves.half_hitches, "unknot", None, 1, 0, 0),
 }
@@ -134,7 +160,17 @@ def _pd_oracle(code: GaussCode) -> tuple[tuple[int, ...], int, list[int]]:
     return tuple(coeffs), link_writhe, signs
 
 
-@pytest.mark.parametrize("name", ["right trefoil", "left trefoil", "figure-eight", "square"])
+@pytest.mark.parametrize(
+    "name",
+    [
+        "right trefoil",
+        "left trefoil",
+        "figure-eight",
+        "square",
+        "right double overhand",
+        "surgeon's knot",
+    ],
+)
 def test_projected_diagram_agrees_with_spherogram(name: str) -> None:
     report = classify_knot(CASES[name][0]())
     code = report.gauss_code  # the raw projection, before any reduction
@@ -184,17 +220,56 @@ def test_classify_invariants_table() -> None:
     assert classify_invariants((1, -2, 3, -2, 1), 2, 0) == ("square", None)
     assert classify_invariants((1, -2, 3, -2, 1), 2, -2) == ("granny", "left")
     assert classify_invariants((2, -5, 2), -2, 1) == ("other", None)  # 6_1, det 9 too
-    assert classify_invariants((1, -1, 1, -1, 1), 3, 5) == ("other", None)
+    assert classify_invariants((1, -1, 1, -1, 1), 3, 5) == ("double-overhand", "right")
+    assert classify_invariants((1, -1, 1, -1, 1), 3, 3) == ("other", None)
+    assert classify_invariants((1, -2, 3, -3, 3, -2, 1), 4, -4) == ("surgeons", "left")
+    assert classify_invariants((1, -2, 3, -3, 3, -2, 1), 4, 6) == ("surgeons-granny", "right")
+    assert classify_invariants((1, -2, 3, -3, 3, -2, 1), 4, 2) == ("other", None)
+
+
+def _torus_2(q: int, n: int = 200) -> NDArray[np.float64]:
+    """The (2, q) torus knot, right-handed, cut open at its outermost point."""
+    t = np.linspace(0.0, 2 * np.pi, n, endpoint=False)
+    r = 2.0 + np.cos(q * t)
+    pts: NDArray[np.float64] = np.c_[r * np.cos(2 * t), r * np.sin(2 * t), -np.sin(q * t)]
+    k = int(np.argmax(np.linalg.norm(pts[:, :2], axis=1)))
+    return np.roll(pts, -k, axis=0)[1:]
+
+
+def _v3_from_jones(coeffs: dict[int, int]) -> float:
+    """v3 = -(V'''(1) + 3 V''(1)) / 36 from a Jones polynomial {power: coefficient}."""
+    d2 = sum(c * k * (k - 1) for k, c in coeffs.items())
+    d3 = sum(c * k * (k - 1) * (k - 2) for k, c in coeffs.items())
+    return -(d3 + 3 * d2) / 36
+
+
+def test_the_double_overhand_is_the_cinquefoil() -> None:
+    # Oracles: the (2,5) torus knot built parametrically, and the knot table's values for
+    # 5_1: Delta = t^4 - t^3 + t^2 - t + 1, Conway 1 + 3z^2 + z^4 (v2 = 3), and v3 from
+    # its Jones polynomial (the formula gives +1 on the right trefoil's t + t^3 - t^4).
+    assert _v3_from_jones({1: 1, 3: 1, 4: -1}) == 1
+    right_cinquefoil_jones = {2: 1, 4: 1, 5: -1, 6: 1, 7: -1}
+    for report in (classify_knot(_torus_2(5)), classify_knot(curves.overhand(2))):
+        assert report.alexander == (1, -1, 1, -1, 1)
+        assert report.v2 == 3
+        assert report.v3 == _v3_from_jones(right_cinquefoil_jones) == 5
+        assert (report.type, report.chirality) == ("double-overhand", "right")
+
+
+def test_one_pass_of_the_end_is_the_trefoil() -> None:
+    # the same construction with one pass: the overhand knot, same hand as curves.trefoil
+    for right in (True, False):
+        tied = classify_knot(curves.overhand(1, right=right))
+        torus = classify_knot(curves.trefoil(right=right))
+        assert (tied.type, tied.chirality, tied.v3) == (torus.type, torus.chirality, torus.v3)
+    with pytest.raises(ValueError, match="turns"):
+        curves.overhand(0)
 
 
 def test_other_knots_are_other() -> None:
-    t = np.linspace(0.0, 2 * np.pi, 160, endpoint=False)
-    r = 2.0 + np.cos(5.0 * t)
-    cinquefoil: NDArray[np.float64] = np.c_[r * np.cos(2 * t), r * np.sin(2 * t), -np.sin(5 * t)]
-    k = int(np.argmax(np.linalg.norm(cinquefoil[:, :2], axis=1)))
-    report = classify_knot(np.roll(cinquefoil, -k, axis=0)[1:])
+    report = classify_knot(_torus_2(7))  # 7_1
     assert report.type == "other"
-    assert (report.determinant, report.v2, abs(report.v3)) == (5, 3, 5)
+    assert (report.determinant, report.v2, abs(report.v3)) == (7, 6, 14)
 
 
 @pytest.mark.parametrize(

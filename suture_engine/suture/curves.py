@@ -9,6 +9,9 @@ classifier's far-away closure gives the intended knot:
 - :func:`long_knot`: a knot laid along the x axis (ends far out at +-x);
 - :func:`connected_sum`: two long knots one after the other (square knot =
   trefoil # mirror trefoil, granny knot = trefoil # trefoil);
+- :func:`overhand`: a strand whose end goes through its own loop once (overhand,
+  trefoil) or twice (double overhand, a surgeon's first throw), built as a
+  surgeon ties it; :func:`surgeons_knot` joins a double and a single throw;
 - :func:`wobbly_unknot`: an unknot with many projected crossings;
 - :func:`half_hitches`: a straight post strand with a second strand wrapped
   around it, the capsized square knot of thesis Fig. 7.4 (geometry only).
@@ -25,7 +28,9 @@ __all__ = [
     "granny_knot",
     "half_hitches",
     "long_knot",
+    "overhand",
     "square_knot",
+    "surgeons_knot",
     "trefoil",
     "wobbly_unknot",
 ]
@@ -100,6 +105,53 @@ def square_knot(n: int = 100, *, right_first: bool = True) -> NDArray[np.float64
 def granny_knot(n: int = 100, *, right: bool = True) -> NDArray[np.float64]:
     """Granny knot: trefoil # trefoil of the same handedness."""
     return connected_sum(long_knot(trefoil(n, right=right)), long_knot(trefoil(n, right=right)))
+
+
+def overhand(turns: int = 1, *, right: bool = True, n: int = 12) -> NDArray[np.float64]:
+    """A long knot tied as a hand ties it: a loop, and the end through it ``turns`` times.
+
+    The standing part comes in along -x (at y = -1) to the bottom of a unit loop in
+    the z = 0 plane, goes once round it counter-clockwise and rises at the end of the
+    lap to pass over itself. The end then winds ``turns`` times round the loop's right
+    side (radius 0.3 about the loop's own strand), so that it goes through the loop
+    once per turn, and leaves over the top to +x. No knot type is put in by hand: one
+    turn is an overhand knot, two a double overhand (a surgeon's first throw).
+
+    Args:
+        turns: passes of the end through the loop (>= 1).
+        right: the right-handed knot (trefoil v3 = +1) or its mirror image.
+        n: samples per quarter of the loop (twice as many per turn of the end).
+    """
+    if turns < 1:
+        raise ValueError(f"turns must be >= 1, got {turns}")
+    standing = np.c_[np.linspace(-6.0, 0.0, 8)[:-1], np.full(7, -1.0), np.zeros(7)]
+    s = np.linspace(-0.5 * np.pi, 1.5 * np.pi, 4 * n)
+    lap = np.c_[np.cos(s), np.sin(s), np.where(s > np.pi, 0.6 * (s - np.pi) / (0.5 * np.pi), 0.0)]
+    # the end's winding: round the lap's strand on the loop's right side, starting
+    # above it; this sense makes one turn a knot (the other undoes the loop's crossing)
+    w = np.linspace(-0.5 * np.pi + 0.5, 0.5 * np.pi - 0.3, 2 * n * turns + 1)
+    phi = 0.5 * np.pi - 2.0 * np.pi * turns * (w - w[0]) / (w[-1] - w[0])
+    wind = np.c_[(1.0 + 0.3 * np.cos(phi)) * np.cos(w), (1.0 + 0.3 * np.cos(phi)) * np.sin(w)]
+    wind = np.c_[wind, 0.3 * np.sin(phi)]
+    over = lap[-1] + (wind[0] - lap[-1]) * np.linspace(0.0, 1.0, 10)[1:-1, None]
+    end = wind[-1]
+    leave = np.array([[end[0], end[1], 1.5], [3.0, 0.0, 1.5], [6.0, 0.0, 0.0]])
+    pts = np.vstack([standing, lap, over, wind, leave])
+    if not right:
+        pts[:, 2] *= -1.0
+    return pts
+
+
+def surgeons_knot(*, right_first: bool = True, mirrored: bool = True) -> NDArray[np.float64]:
+    """Surgeon's knot: a double overhand, then a single throw along the thread.
+
+    Args:
+        right_first: handedness of the double throw.
+        mirrored: the second throw is the first's mirror image (a surgeon's knot);
+            ``False`` gives both throws one hand (the surgeon's granny).
+    """
+    second_right = not right_first if mirrored else right_first
+    return connected_sum(overhand(2, right=right_first), overhand(1, right=second_right))
 
 
 def wobbly_unknot(n: int = 120, *, turns: int = 6) -> NDArray[np.float64]:

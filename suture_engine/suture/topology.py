@@ -17,6 +17,15 @@ trefoil (overhand knot) det 3, v2 1, v3 +-1 (right-handed +1);
 figure-eight det 5, v2 -1, v3 0; square (reef) knot = trefoil # mirror
 trefoil det 9, v2 2, v3 0; granny knot = trefoil # trefoil det 9, v2 2,
 v3 +-2.
+
+A surgeon's knot's first throw passes the end through the loop twice: the end winds
+twice round the loop's own strand, so its crossings are five half-twists of two strands
+of one sign, and the closed double overhand is the (2,5) torus knot (cinquefoil 5_1:
+Delta = t^4 - t^3 + t^2 - t + 1, det 5, v2 3, v3 +-5, +5 for the right-handed one, the
+same sign as the right-handed trefoil's). The surgeon's knot = double overhand # mirror
+trefoil: det 15, v2 4, v3 +-4; with the second throw not mirrored ("surgeon's granny")
+v3 +-6. (Ends cut open from the hand-built curves of
+:func:`suture_engine.suture.curves.overhand`.)
 """
 
 from __future__ import annotations
@@ -55,11 +64,24 @@ __all__ = [
     "simplify_polyline",
 ]
 
-KnotType = Literal["unknot", "trefoil", "figure-eight", "square", "granny", "other"]
+KnotType = Literal[
+    "unknot",
+    "trefoil",
+    "figure-eight",
+    "square",
+    "granny",
+    "double-overhand",
+    "surgeons",
+    "surgeons-granny",
+    "other",
+]
 
 _TREFOIL: tuple[int, ...] = (1, -1, 1)
 _FIGURE_EIGHT: tuple[int, ...] = (-1, 3, -1)
 _SQUARE: tuple[int, ...] = (1, -2, 3, -2, 1)
+_CINQUEFOIL: tuple[int, ...] = (1, -1, 1, -1, 1)
+_SURGEONS: tuple[int, ...] = (1, -2, 3, -3, 3, -2, 1)
+"""Cinquefoil x trefoil: the Alexander polynomial of a connected sum is the product."""
 
 
 class InvalidCenterline(SutureError):
@@ -107,9 +129,11 @@ class KnotReport:
 
     Attributes:
         type: ``unknot``, ``trefoil``, ``figure-eight``, ``square``,
-            ``granny`` or ``other``.
-        chirality: ``left``/``right`` for the chiral types (trefoil, granny),
-            else None.
+            ``granny``, ``double-overhand`` (a surgeon's first throw alone),
+            ``surgeons`` (double overhand # mirror trefoil), ``surgeons-granny``
+            (double overhand # trefoil of the same hand) or ``other``.
+        chirality: ``left``/``right`` for the chiral types (trefoil, granny and
+            the double overhand and surgeon's knots: the sign of v3), else None.
         determinant: ``|Delta(-1)|``.
         alexander: Alexander polynomial, coefficients from degree 0 up,
             normalised with Delta(1) = 1.
@@ -454,6 +478,13 @@ def classify_invariants(
             return "square", None
         if abs(v3) == 2:
             return "granny", "right" if v3 > 0 else "left"
+    if alexander == _CINQUEFOIL and v2 == 3 and abs(v3) == 5:
+        return "double-overhand", "right" if v3 > 0 else "left"
+    if alexander == _SURGEONS and v2 == 4:
+        if abs(v3) == 4:
+            return "surgeons", "right" if v3 > 0 else "left"
+        if abs(v3) == 6:
+            return "surgeons-granny", "right" if v3 > 0 else "left"
     return "other", None
 
 

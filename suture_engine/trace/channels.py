@@ -410,7 +410,7 @@ CATALOGUE: tuple[ChannelSpec, ...] = (
         _obj(
             "Knot classification (ground truth)",
             {
-                "type": {**_STR, "description": "unknot, square, granny, half_hitches, ..."},
+                "type": {**_STR, "description": "unknot, trefoil, square, granny, surgeons, ..."},
                 "crossings": {"type": "integer"},
                 "seated": {"type": "boolean"},
                 "detail": _FREE,
