@@ -78,10 +78,16 @@ KnotType = Literal[
 
 _TREFOIL: tuple[int, ...] = (1, -1, 1)
 _FIGURE_EIGHT: tuple[int, ...] = (-1, 3, -1)
-_SQUARE: tuple[int, ...] = (1, -2, 3, -2, 1)
 _CINQUEFOIL: tuple[int, ...] = (1, -1, 1, -1, 1)
-_SURGEONS: tuple[int, ...] = (1, -2, 3, -3, 3, -2, 1)
-"""Cinquefoil x trefoil: the Alexander polynomial of a connected sum is the product."""
+
+
+def _connected_sum(a: tuple[int, ...], b: tuple[int, ...]) -> tuple[int, ...]:
+    """Alexander polynomial of a connected sum: the product of the summands'."""
+    return tuple(int(c) for c in np.convolve(a, b))
+
+
+_SQUARE = _connected_sum(_TREFOIL, _TREFOIL)
+_SURGEONS = _connected_sum(_CINQUEFOIL, _TREFOIL)
 
 
 class InvalidCenterline(SutureError):
