@@ -388,6 +388,44 @@ def test_the_second_throw_keeps_the_tail_and_the_stitched_start_skips_the_stitch
 
 
 @pytest.mark.parametrize(
+    ("procedure", "params", "missed"),
+    [
+        ("square-knot.yaml", {"stitch": False}, True),
+        ("square-knot.yaml", {"stitch": False, "check_throw": False}, False),
+        ("square-knot.yaml", {"stitch": False, "mirror": False}, False),
+        ("secure-knot.yaml", {}, False),
+    ],
+)
+def test_a_mirrored_cinch_that_does_not_draw_taut_ends_the_run_failed(
+    procedure: str, params: dict[str, Any], missed: bool
+) -> None:
+    """The square knot's second throw is checked by measurement: its cinch's 0.3 N guard
+    (the stitcher's base estimate along the draw) not met means the loop never drew taut
+    on the jaws, the needle's end is not through it, and the run ends ``failed`` after the
+    hook is retracted. The first throw's cinch, whose strand is slack, goes on as before;
+    so do an unmirrored second throw and ``secure-knot.yaml``'s (where the guard does not
+    tell a tied throw from a missed one)."""
+    from suture_engine.runtime.automaton import Outcome
+    from suture_engine.runtime.plan import compile_procedure
+
+    proc = load_procedure(ROOT / "procedures" / procedure, params=params)
+    plan = compile_procedure(proc)
+    second = "mirrored-knot" if procedure == "square-knot.yaml" else "second-throw"
+    first = "simple-knot" if procedure == "square-knot.yaml" else "first-throw"
+    assert plan.steps[f"{first}.cinch"].policy.goto == f"{first}.release-hook"
+    cinch = plan.steps[f"{second}.cinch"]
+    assert cinch.on_done == f"{second}.release-hook"
+    if missed:
+        drop = plan.steps[f"{second}.drop-loop"]
+        assert cinch.policy.goto == drop.name and drop.enabled
+        assert drop.on_done == drop.policy.goto == f"{second}.not-tied"
+        assert plan.terminals[f"{second}.not-tied"] is Outcome.FAILED
+    else:
+        assert cinch.policy.goto == f"{second}.release-hook"
+        assert not plan.steps[f"{second}.drop-loop"].enabled
+
+
+@pytest.mark.parametrize(
     ("mirror", "second", "roll_deg"),
     [(False, False, -90), (True, True, -90), (False, True, 90), (True, False, 90)],
 )

@@ -130,3 +130,49 @@ def test_real_cli_on_a_subset_text_and_json() -> None:
     assert {r["code"] for r in records} >= {_expect(CORPUS / f"{n}.yaml").code for n in SUBSET}
     for r in records:
         assert set(r) == {"file", "line", "column", "path", "code", "message"}
+
+
+_BRANCH = """\
+procedure: branch
+scene: scenes/bench.yaml
+params:
+  check: {type: bool, default: true}
+roles: {stitcher: endobot_1, grasper: endobot_2}
+initial: a
+states:
+  a:
+    skill: hold
+    with: {robot: stitcher, duration: 0.1 s}
+    on: {done: end, failed: "${'give-up' if check else 'end'}"}
+  give-up:
+    when: ${WHEN}
+    skill: hold
+    with: {robot: grasper, duration: 0.1 s}
+    on: {done: missed}
+  missed: {outcome: failed}
+  end: {outcome: succeeded}
+"""
+
+
+@pytest.mark.parametrize(("check", "when", "unreachable"), [
+    (True, "check", []),
+    # cut off by the `on:` expression and skipped by `when:`: neither it nor the terminal
+    # only it leads to is a problem
+    (False, "check", []),
+    # cut off and still enabled: both are reported
+    (False, "not check", ["give-up", "missed"]),
+])  # fmt: skip
+def test_a_state_skipped_by_when_and_cut_off_by_an_expression_is_not_unreachable(
+    tmp_path: Path, check: bool, when: str, unreachable: list[str]
+) -> None:
+    (tmp_path / "scenes").mkdir()
+    (tmp_path / "scenes" / "bench.yaml").write_text(
+        (CORPUS / "scenes" / "bench.yaml").read_text(encoding="utf-8"), encoding="utf-8"
+    )
+    path = tmp_path / "branch.yaml"
+    text = _BRANCH.replace("WHEN", when).replace("default: true", f"default: {str(check).lower()}")
+    path.write_text(text, encoding="utf-8")
+    problems = validate_file(path)
+    found = sorted(p.message.split("'")[1] for p in problems if p.code == "unreachable-state")
+    assert found == unreachable, [p.format() for p in problems]
+    assert [p for p in problems if p.code != "unreachable-state"] == []

@@ -162,9 +162,12 @@ def _graph(proc: Procedure) -> list[Problem]:
                 )
                 continue
             succ[name].add(target)
-    # reachable from initial
+    # reachable from initial; a state skipped by `when:` (false) may be cut off by an
+    # `on:` expression resolved for the same parameters, so it and what it leads to
+    # count as reachable
     if proc.initial in proc.states:
-        seen = _closure(proc.initial, succ)
+        skipped = [n for n, s in proc.states.items() if not s.enabled]
+        seen = _closure([proc.initial, *skipped], succ)
         for name in names:
             if name not in seen:
                 out.append(
@@ -186,7 +189,7 @@ def _graph(proc: Procedure) -> list[Problem]:
             pred[b].add(a)
     can_end: set[str] = set()
     for end in ends:
-        can_end |= _closure(end, pred)
+        can_end |= _closure([end], pred)
     if terminals:
         for name in names:
             if name not in can_end:
@@ -202,7 +205,7 @@ def _graph(proc: Procedure) -> list[Problem]:
         for event, target in _edges(state):
             if event in PLANNED_EVENTS or target not in proc.states:
                 continue
-            if name in _closure(target, succ):
+            if name in _closure([target], succ):
                 out.append(
                     src.problem(
                         "unbounded-retry",
@@ -214,9 +217,9 @@ def _graph(proc: Procedure) -> list[Problem]:
     return out
 
 
-def _closure(start: str, succ: dict[str, set[str]]) -> set[str]:
-    seen = {start}
-    queue = deque([start])
+def _closure(starts: list[str], succ: dict[str, set[str]]) -> set[str]:
+    seen = set(starts)
+    queue = deque(starts)
     while queue:
         for nxt in succ.get(queue.popleft(), ()):
             if nxt not in seen:
