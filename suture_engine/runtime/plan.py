@@ -8,7 +8,9 @@ automaton completes it at once when it is entered; a skipped ``use:`` state is
 one skipped step, its sub-procedure is not inlined. A ``use:`` state
 is inlined: its sub-procedure's states are named ``<state>.<sub-state>``, the
 sub-procedure's ``succeeded`` terminals lead to the ``use:`` state's ``done``
-target, and its other terminals end the run with their outcome.
+target, and its other terminals end the run with their outcome, except that a
+``use:`` state's ``failed:`` naming a state (``on: {done: tied, failed: again}``)
+leads its sub-procedure's ``failed`` terminals there.
 """
 
 from __future__ import annotations
@@ -84,8 +86,13 @@ def _inline(
     roles: Mapping[str, str],
     steps: dict[str, StepSpec],
     terminals: dict[str, Outcome],
+    exits: Mapping[str, str] | None = None,
 ) -> str:
-    """Add ``proc``'s states; return the full name of its entry step."""
+    """Add ``proc``'s states; return the full name of its entry step.
+
+    ``exits`` maps outcomes of ``proc``'s terminals (a sub-procedure's) to the caller's
+    state they lead to instead of ending the run."""
+    exits = exits or {}
     roles = {**roles, **dict(getattr(proc, "roles", None) or {})}
     states: Mapping[str, Any] = proc.states
     entry: dict[str, str] = {}
@@ -98,7 +105,7 @@ def _inline(
         if st.outcome is not None:
             if on_success is not None and st.outcome == "succeeded":
                 return on_success
-            return prefix + name
+            return exits.get(st.outcome, prefix + name)
         if st.use is not None:
             return use_entry(name)
         return prefix + name
@@ -127,12 +134,15 @@ def _inline(
         if not hasattr(st.use, "states"):
             raise AutomatonError(f"state {prefix + name!r}: sub-procedure not loaded", name)
         succ = resolve(done)
-        entry[name] = _inline(st.use, f"{prefix}{name}.", succ, roles, steps, terminals)
+        failed = st.on.get("failed")
+        sub_exits = {"failed": resolve(failed)} if isinstance(failed, str) else {}
+        entry[name] = _inline(st.use, f"{prefix}{name}.", succ, roles, steps, terminals, sub_exits)
         return entry[name]
 
     for name, st in states.items():
         if st.outcome is not None and not (on_success is not None and st.outcome == "succeeded"):
-            terminals[prefix + name] = Outcome(st.outcome)
+            if st.outcome not in exits:
+                terminals[prefix + name] = Outcome(st.outcome)
     for name, st in states.items():
         if st.use is not None:
             use_entry(name)
