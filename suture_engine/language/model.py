@@ -133,13 +133,17 @@ class StateDocument(_Model):
     """Parameters of the skill or sub-procedure (quantities with units, ``${...}``)."""
     when: bool = True
     """When false (usually an expression, ``${stitch}``), the state is skipped: it
-    raises ``done`` at once without running its skill."""
+    raises ``done`` at once without running its skill. A skipped ``use:`` state's
+    sub-procedure is loaded but not checked further (it may suit other parameters), and a
+    skipped state that nothing reaches is not reported as unreachable."""
     invariant: Invariant | None = None
     """The state's invariant."""
     timeout: Duration | None = Field(default=None, gt=0.0)
     """Time after which the state raises the ``timeout`` event [s]."""
     on: dict[str, str | FailurePolicy] = Field(default_factory=dict)
-    """Event -> next state, or a failure policy."""
+    """Event -> next state, or a failure policy. On a ``use:`` state, ``failed: NAME``
+    leads the sub-procedure's ``failed`` terminals to ``NAME`` instead of ending the run
+    (``done`` is where its ``succeeded`` terminals lead)."""
     outcome: Literal["succeeded", "failed", "aborted"] | None = None
     """Marks a terminal state and the outcome it ends the run with."""
 
