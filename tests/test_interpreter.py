@@ -422,6 +422,28 @@ def test_use_states_are_inlined_and_run_in_order(tmp_path: Path) -> None:
     ]
 
 
+def test_a_use_states_failed_target_catches_the_sub_procedures_failed_end(
+    tmp_path: Path,
+) -> None:
+    """``on: {failed: recover}`` on a ``use:`` state: the sub-procedure's ``failed``
+    terminal leads to ``recover`` instead of ending the run (which a sub-procedure's
+    ``failed`` terminal does by default, as ``give-up.yaml`` alone shows)."""
+    from suture_engine.language.loader import load
+    from suture_engine.runtime.plan import compile_procedure
+
+    loaded = load(PROCS / "caught.yaml")
+    assert loaded.problems == []
+    plan = compile_procedure(loaded.procedure)
+    assert plan.steps["try.first"].on_done == "recover"
+    assert set(plan.terminals) == {"recovered", "finished"}
+    result = run_procedure(PROCS / "caught.yaml", backend="ideal", out=tmp_path / "run")
+    assert result.summary.outcome == "aborted"  # the catching branch's own terminal
+    dests = [dst for _, _, dst, _ in _transitions(result.trace)]
+    assert dests == ["autonomous/try.first", "autonomous/recover", "recovered"]
+    alone = run_procedure(PROCS / "give-up.yaml", backend="ideal", out=tmp_path / "alone")
+    assert alone.summary.outcome == "failed"
+
+
 @pytest.mark.parametrize("extra", [False, True])
 def test_when_false_skips_skill_and_use_states_and_says_so(tmp_path: Path, extra: bool) -> None:
     from suture_engine.language.loader import load

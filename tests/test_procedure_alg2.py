@@ -416,25 +416,10 @@ def test_a_mirrored_cinch_that_does_not_draw_taut_ends_the_run_failed(
     cinch = plan.steps[f"{second}.cinch"]
     assert cinch.on_done == f"{second}.release-hook"
     if missed:
-        # the first miss: the hook retracted, then the mirrored throw once more, without
-        # carrying the tail across again and with the needle passed from the first
-        # throw's jaw (+90 deg: the mirror image from that jaw); a second miss ends failed
         drop = plan.steps[f"{second}.drop-loop"]
         assert cinch.policy.goto == drop.name and drop.enabled
-        assert drop.on_done == drop.policy.goto == "mirrored-again.stitch"
-        assert f"{second}.not-tied" not in plan.terminals
-        again = plan.steps["mirrored-again.cinch"]
-        assert again.policy.goto == "mirrored-again.drop-loop"
-        assert plan.steps["mirrored-again.drop-loop"].on_done == "mirrored-again.not-tied"
-        assert plan.terminals["mirrored-again.not-tied"] is Outcome.FAILED
-        assert not plan.steps["mirrored-again.cross-tail"].enabled
-        assert plan.steps["mirrored-again.extend-hook"].enabled
-        states = proc.states
-        rolls = [
-            states[k].use.states["slide-to-tip"].params.roll
-            for k in ("simple-knot", "mirrored-knot", "mirrored-again")
-        ]
-        assert np.degrees(rolls).round().tolist() == [-90, -90, 90]
+        assert drop.on_done == drop.policy.goto == f"{second}.not-tied"
+        assert plan.terminals[f"{second}.not-tied"] is Outcome.FAILED
     else:
         assert cinch.policy.goto == f"{second}.release-hook"
         assert not plan.steps[f"{second}.drop-loop"].enabled
