@@ -444,6 +444,36 @@ def test_a_use_states_failed_target_catches_the_sub_procedures_failed_end(
     assert alone.summary.outcome == "failed"
 
 
+@pytest.mark.parametrize("then", ["lock", "abort"])
+def test_a_use_states_failure_policy_retries_its_sub_procedure_then_locks_or_aborts(
+    tmp_path: Path, then: str
+) -> None:
+    """``on: {failed: {retry: 1, then: ...}}`` on a ``use:`` state: the sub-procedure's
+    ``failed`` terminal is a step that fails at once (an unpredictable event); its NOT-BE
+    state runs the sub-procedure again from its first step, once, then locks the robots
+    for the operator (none here: the run stops ``failed``) or aborts."""
+    from suture_engine.trace.reader import TraceReader
+
+    out = tmp_path / then
+    result = run_procedure(PROCS / "retried.yaml", backend="ideal", out=out, sets=[f"then={then}"])
+    moves = [(src, dst, trig) for _, src, dst, trig in _transitions(result.trace)]
+    once = [
+        ("autonomous/try.first", "autonomous/try.gave-up", "advance"),
+        ("autonomous/try.gave-up", "autonomous/try.gave-up~notbe", "fault"),
+    ]
+    assert moves[1:3] == once and moves[4:6] == once
+    assert moves[3] == ("autonomous/try.gave-up~notbe", "autonomous/try.first", "retry")
+    assert result.summary.retries == 1
+    events = [m.data for m in TraceReader(out / "trace.mcap").messages(["/events"])]
+    assert any("ended in 'gave-up'" in (e["detail"] or "") for e in events)
+    if then == "lock":
+        assert moves[-1] == ("autonomous/try.gave-up~notbe", "lock", "lock")
+        assert result.summary.outcome == "failed"
+        assert result.summary.metrics["stopped"].startswith("locked")
+    else:
+        assert moves[-1][2] == "abort" and result.summary.outcome == "aborted"
+
+
 @pytest.mark.parametrize("extra", [False, True])
 def test_when_false_skips_skill_and_use_states_and_says_so(tmp_path: Path, extra: bool) -> None:
     from suture_engine.language.loader import load

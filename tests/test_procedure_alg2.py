@@ -352,6 +352,24 @@ def test_algorithm_2_ties_a_square_knot_on_the_surgical_backend(tmp_path: Path) 
 
 
 @pytest.mark.slow
+def test_a_missed_second_throw_is_caught_by_its_cinch_and_the_run_fails(tmp_path: Path) -> None:
+    """The main job on seed 13, whose second throw misses (the loop slips off the
+    grasper's end in the take-up): the cinch does not draw taut, the throw ends in
+    ``mirrored-knot.not-tied``, and the robots lock for the surgeon (none here: the run
+    stops ``failed``) instead of claiming a knot. The ground truth agrees: the first
+    trefoil only. The true tension stays under the limit."""
+    summary, knot = _run_on_thread(tmp_path, "square-knot.yaml", 13, [], 220)
+    assert summary["outcome"] == "failed" and summary["final_state"] == "lock"
+    assert summary["metrics"]["stopped"].startswith("locked")
+    from suture_engine.trace.reader import TraceReader
+
+    events = TraceReader(tmp_path / "run" / "trace.mcap").messages(["/events"])
+    assert "exhausted:mirrored-knot.not-tied" in [m.data["detail"] for m in events]
+    assert knot["type"] == "trefoil"
+    assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
+
+
+@pytest.mark.slow
 def test_the_readme_main_job_ties_a_square_knot(tmp_path: Path) -> None:
     """``suture run procedures/square-knot.yaml`` as the README gives it (no option): the
     procedure's own backend (the stitched start) and seed 0. It ends ``succeeded`` with a
@@ -401,11 +419,12 @@ def test_a_mirrored_cinch_that_does_not_draw_taut_ends_the_run_failed(
 ) -> None:
     """The square knot's second throw is checked by measurement: its cinch's 0.3 N guard
     (the stitcher's base estimate along the draw) not met means the loop never drew taut
-    on the jaws, the needle's end is not through it, and the run ends ``failed`` after the
-    hook is retracted. The first throw's cinch, whose strand is slack, goes on as before;
-    so do an unmirrored second throw and ``secure-knot.yaml``'s (where the guard does not
-    tell a tied throw from a missed one)."""
-    from suture_engine.runtime.automaton import Outcome
+    on the jaws and the needle's end is not through it: the hook is retracted, the throw
+    ends failed, and the robots lock for the surgeon. The first throw's cinch, whose
+    strand is slack, goes on as before; so do an unmirrored second throw and
+    ``secure-knot.yaml``'s (where the guard does not tell a tied throw from a missed
+    one)."""
+    from suture_engine.runtime.automaton import Then
     from suture_engine.runtime.plan import compile_procedure
 
     proc = load_procedure(ROOT / "procedures" / procedure, params=params)
@@ -419,7 +438,11 @@ def test_a_mirrored_cinch_that_does_not_draw_taut_ends_the_run_failed(
         drop = plan.steps[f"{second}.drop-loop"]
         assert cinch.policy.goto == drop.name and drop.enabled
         assert drop.on_done == drop.policy.goto == f"{second}.not-tied"
-        assert plan.terminals[f"{second}.not-tied"] is Outcome.FAILED
+        # the throw's failed end, under the square knot's policy: no retry, then a lock
+        # for the surgeon
+        end = plan.steps[f"{second}.not-tied"]
+        assert (end.policy.retry, end.policy.then) == (0, Then.LOCK)
+        assert f"{second}.not-tied" not in plan.terminals
     else:
         assert cinch.policy.goto == f"{second}.release-hook"
         assert not plan.steps[f"{second}.drop-loop"].enabled

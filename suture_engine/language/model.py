@@ -141,9 +141,11 @@ class StateDocument(_Model):
     timeout: Duration | None = Field(default=None, gt=0.0)
     """Time after which the state raises the ``timeout`` event [s]."""
     on: dict[str, str | FailurePolicy] = Field(default_factory=dict)
-    """Event -> next state, or a failure policy. On a ``use:`` state, ``failed: NAME``
-    leads the sub-procedure's ``failed`` terminals to ``NAME`` instead of ending the run
-    (``done`` is where its ``succeeded`` terminals lead)."""
+    """Event -> next state, or a failure policy. On a ``use:`` state ``done`` is where the
+    sub-procedure's ``succeeded`` terminals lead; its ``failed`` terminals end the run
+    unless ``failed:`` names a state (they lead there) or gives a policy (they fail as a
+    step would: ``retry`` runs the sub-procedure again from its first step, then lock or
+    abort)."""
     outcome: Literal["succeeded", "failed", "aborted"] | None = None
     """Marks a terminal state and the outcome it ends the run with."""
 

@@ -104,11 +104,14 @@ class FailurePolicy:
         retry: how many times the previous step (e^_{i-1}) is run again from NOT-BE.
         then: what happens when the retries are used up.
         goto: instead of ``then``, go to this step or terminal (``on: {failed: NAME}``).
+        retry_from: the step a retry enters (None: the previous step, e^_{i-1}); a
+            sub-procedure's retry enters its first step.
     """
 
     retry: int = 0
     then: Then = Then.LOCK
     goto: str | None = None
+    retry_from: str | None = None
 
     def __post_init__(self) -> None:
         if self.retry < 0:
@@ -524,7 +527,7 @@ class Automaton:
         if self.retries[step] < policy.retry:
             self.retries[step] += 1
             self.retries_total += 1
-            target = self._previous.get(step) or step
+            target = policy.retry_from or self._previous.get(step) or step
             return self._enter_step("retry", "policy", target, reason=f"retry:{step}")
         if policy.goto is not None:
             if policy.goto in self.plan.steps:

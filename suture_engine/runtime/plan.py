@@ -8,9 +8,12 @@ automaton completes it at once when it is entered; a skipped ``use:`` state is
 one skipped step, its sub-procedure is not inlined. A ``use:`` state
 is inlined: its sub-procedure's states are named ``<state>.<sub-state>``, the
 sub-procedure's ``succeeded`` terminals lead to the ``use:`` state's ``done``
-target, and its other terminals end the run with their outcome, except that a
-``use:`` state's ``failed:`` naming a state (``on: {done: tied, failed: again}``)
-leads its sub-procedure's ``failed`` terminals there.
+target, and its other terminals end the run with their outcome, except its ``failed``
+terminals when the ``use:`` state has a ``failed:`` entry. Naming a state
+(``on: {done: tied, failed: again}``) leads them there. A failure policy
+(``failed: {retry: 1, then: lock}``) makes each one a step that fails at once: its
+retries run the sub-procedure again from its first step, then the robots lock (or the
+run aborts), as a failing skill's would.
 """
 
 from __future__ import annotations
@@ -74,6 +77,32 @@ def _factory(skill_name: str, params: Any) -> Any:
     return lambda: cls(params)
 
 
+def _ended(message: str) -> Any:
+    """The skill factory of a sub-procedure's ``failed`` terminal under its ``use:``
+    state's failure policy: a skill that fails on its first tick."""
+
+    def make() -> Any:
+        return _Ended(message)
+
+    return make
+
+
+class _Ended:
+    """Fails on its first tick with ``message``; every robot holds its pose."""
+
+    def __init__(self, message: str) -> None:
+        self.message = message
+
+    def start(self, ctx: Any) -> None:
+        """Nothing to prepare."""
+
+    def step(self, ctx: Any, obs: Any) -> Any:
+        """A failure (an unpredictable event) with no command of its own."""
+        from suture_engine.runtime.observation import Command, SkillStatus, StepResult
+
+        return StepResult(Command({}), SkillStatus.FAILURE, self.message)
+
+
 def _skipped() -> Any:
     """The skill factory of a skipped ``use:`` state: never called (no skill runs)."""
     raise AutomatonError("a skipped state (when: false) runs no skill")
@@ -91,7 +120,8 @@ def _inline(
     """Add ``proc``'s states; return the full name of its entry step.
 
     ``exits`` maps outcomes of ``proc``'s terminals (a sub-procedure's) to the caller's
-    state they lead to instead of ending the run."""
+    state they lead to instead of ending the run; ``None`` keeps the terminal's name
+    for a step the caller adds."""
     exits = exits or {}
     roles = {**roles, **dict(getattr(proc, "roles", None) or {})}
     states: Mapping[str, Any] = proc.states
@@ -105,7 +135,7 @@ def _inline(
         if st.outcome is not None:
             if on_success is not None and st.outcome == "succeeded":
                 return on_success
-            return exits.get(st.outcome, prefix + name)
+            return exits.get(st.outcome) or prefix + name
         if st.use is not None:
             return use_entry(name)
         return prefix + name
@@ -135,8 +165,25 @@ def _inline(
             raise AutomatonError(f"state {prefix + name!r}: sub-procedure not loaded", name)
         succ = resolve(done)
         failed = st.on.get("failed")
-        sub_exits = {"failed": resolve(failed)} if isinstance(failed, str) else {}
-        entry[name] = _inline(st.use, f"{prefix}{name}.", succ, roles, steps, terminals, sub_exits)
+        sub_exits: dict[str, str | None] = {}
+        if isinstance(failed, str):
+            sub_exits["failed"] = resolve(failed)
+        elif failed is not None:
+            sub_exits["failed"] = None
+        sub_prefix = f"{prefix}{name}."
+        entry[name] = _inline(st.use, sub_prefix, succ, roles, steps, terminals, sub_exits)
+        if failed is not None and not isinstance(failed, str):
+            policy = _policy(failed)
+            for end, sub in st.use.states.items():
+                if sub.outcome != "failed":
+                    continue
+                steps[sub_prefix + end] = StepSpec(
+                    name=sub_prefix + end,
+                    make_skill=_ended(f"{prefix}{name} ended in {end!r} (outcome failed)"),
+                    on_done=entry[name],
+                    policy=FailurePolicy(policy.retry, policy.then, retry_from=entry[name]),
+                    roles=roles,
+                )
         return entry[name]
 
     for name, st in states.items():
