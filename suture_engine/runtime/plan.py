@@ -115,7 +115,7 @@ def _inline(
     roles: Mapping[str, str],
     steps: dict[str, StepSpec],
     terminals: dict[str, Outcome],
-    exits: Mapping[str, str] | None = None,
+    exits: Mapping[str, str | None] | None = None,
 ) -> str:
     """Add ``proc``'s states; return the full name of its entry step.
 
