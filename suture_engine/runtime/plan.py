@@ -19,6 +19,7 @@ run aborts), as a failing skill's would.
 from __future__ import annotations
 
 from collections.abc import Mapping
+from functools import partial
 from typing import Any
 
 from suture_engine.runtime.automaton import (
@@ -77,18 +78,10 @@ def _factory(skill_name: str, params: Any) -> Any:
     return lambda: cls(params)
 
 
-def _ended(message: str) -> Any:
-    """The skill factory of a sub-procedure's ``failed`` terminal under its ``use:``
-    state's failure policy: a skill that fails on its first tick."""
-
-    def make() -> Any:
-        return _Ended(message)
-
-    return make
-
-
 class _Ended:
-    """Fails on its first tick with ``message``; every robot holds its pose."""
+    """The skill of a sub-procedure's ``failed`` terminal under its ``use:`` state's
+    failure policy: fails on its first tick with ``message``; every robot holds its
+    pose."""
 
     def __init__(self, message: str) -> None:
         self.message = message
@@ -179,7 +172,7 @@ def _inline(
                     continue
                 steps[sub_prefix + end] = StepSpec(
                     name=sub_prefix + end,
-                    make_skill=_ended(f"{prefix}{name} ended in {end!r} (outcome failed)"),
+                    make_skill=partial(_Ended, f"{prefix}{name} ended in {end!r} (outcome failed)"),
                     on_done=entry[name],
                     policy=FailurePolicy(policy.retry, policy.then, retry_from=entry[name]),
                     roles=roles,
