@@ -133,9 +133,8 @@ class StateDocument(_Model):
     """Parameters of the skill or sub-procedure (quantities with units, ``${...}``)."""
     when: bool = True
     """When false (usually an expression, ``${stitch}``), the state is skipped: it
-    raises ``done`` at once without running its skill. A skipped ``use:`` state's
-    sub-procedure is loaded but not checked further (it may suit other parameters), and a
-    skipped state that nothing reaches is not reported as unreachable."""
+    raises ``done`` at once without running its skill. A skipped state that nothing
+    reaches is not reported as unreachable."""
     invariant: Invariant | None = None
     """The state's invariant."""
     timeout: Duration | None = Field(default=None, gt=0.0)

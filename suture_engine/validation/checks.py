@@ -101,12 +101,9 @@ def check_procedure(proc: Procedure) -> list[Problem]:
 
 
 def _walk(proc: Procedure) -> Iterator[Procedure]:
-    """``proc`` and the sub-procedures it runs: one behind a skipped ``use:`` state
-    (``when:`` false) is loaded (its file and parameters are checked) but not checked
-    further, since it may suit only other parameters (a tool the scene lacks)."""
     yield proc
     for state in proc.states.values():
-        if state.use is not None and state.enabled:
+        if state.use is not None:
             yield from _walk(state.use)
 
 
