@@ -575,3 +575,30 @@ def test_the_mirrored_second_throw_is_the_first_reflected_in_the_grasper_frame()
     back = np.asarray(mirrored.states["pull-through"].params.target)
     assert float(back @ f2[0]) == pytest.approx(6e-3, abs=0.3e-3)
     assert float(np.linalg.norm(back - (back @ f2[0]) * f2[0])) < 0.3e-3
+
+
+SHIPPED_PASS_ESTIMATE_N = 0.30
+"""Largest base estimate (either robot) in the mirrored ``under`` and ``pass-needle``
+on the stitched start, seeds 6-19 [N] (docs/status.md)."""
+FIRST_PASS_ESTIMATE_N = 1.8
+"""Largest base estimate in the first throw's ``under`` and ``pass-needle`` there [N]:
+the stitcher's jaws about the grasper's stem, the thread slack (0.15-0.58 N true)."""
+SQUEEZED_PASS_ESTIMATE_N = 1.16
+"""Smallest estimate seen while the tools squeezed the strand in the mirrored pass (the
+loop 30 mm up the shaft, 6.3-7.6 N true) [N]."""
+
+
+def test_the_mirrored_pass_locks_when_the_tools_squeeze_the_strand() -> None:
+    """The mirrored throw's ``under`` and ``pass-needle`` carry a ``pass_tension``
+    invariant that lies between what the shipped throws read and what a squeeze read; the
+    first throw's bound is the scene's limit, above its contact readings."""
+    from suture_engine.runtime.plan import compile_procedure
+
+    proc = load_procedure(ROOT / "procedures" / "square-knot.yaml", params={"stitch": False})
+    plan = compile_procedure(proc)
+    limit = float(proc.scene.tension_limit)
+    for step in ("under", "pass-needle"):
+        mirrored = plan.steps[f"mirrored-knot.{step}"].invariant.max_tension_N
+        assert SHIPPED_PASS_ESTIMATE_N < mirrored < SQUEEZED_PASS_ESTIMATE_N
+        first = plan.steps[f"simple-knot.{step}"].invariant.max_tension_N
+        assert first == pytest.approx(limit) and first > FIRST_PASS_ESTIMATE_N
