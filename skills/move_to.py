@@ -4,13 +4,16 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 from pydantic import Field
 
 from skills.base import Skill, SkillParams
 from suture_engine.language.refs import PointRef, RoleRef
 from suture_engine.language.units import Angle, Force, Length, Position, Speed
+
+if TYPE_CHECKING:
+    from suture_engine.validation.problem import Problem
 
 __all__ = ["MoveTo", "MoveToParams"]
 
@@ -57,6 +60,11 @@ class MoveToParams(SkillParams):
     step's first tick) reaches this value; the target is then only the furthest the tip
     may go. Reaching the target without the tension is a failure (nothing was taken
     up). Used to take up a slack strand before it is wrapped or pulled."""
+    taut_within: Length | None = Field(default=None, gt=0.0)
+    """With ``until_tension``: how far the tip may travel along the move [m] (from the
+    measured joints, from where the step started) before the guard must be met. Past it
+    the move stops where it is and fails: the strand did not go taut where it should
+    have (a loop that slipped off a tool takes up much later). ``None``: the whole move."""
 
 
 class MoveTo(Skill):
@@ -93,6 +101,25 @@ class MoveTo(Skill):
         self._base: Any = None
         self._t0 = 0.0
         self._est: Any = None
+        self._tip0: Any = None
+        self._unit: Any = None
+
+    @classmethod
+    def check(cls, params: SkillParams, scene: Any) -> list[Problem]:
+        """``taut_within`` needs the guard (``until_tension``) it bounds."""
+        from suture_engine.validation.problem import Problem
+
+        assert isinstance(params, MoveToParams)
+        if params.taut_within is not None and params.until_tension is None:
+            return [
+                Problem(
+                    "taut-within-without-guard",
+                    "taut_within bounds where a guarded move's tension must be met: "
+                    "give until_tension too",
+                    path="taut_within",
+                )
+            ]
+        return []
 
     def _target_world(self, ctx: Any) -> tuple[float, float, float]:
         from suture_engine.runtime.trajectory import tool_tip_world
@@ -154,8 +181,12 @@ class MoveTo(Skill):
         self._t0 = ctx.t0
         self._est = None
         if p.until_tension is not None and distance > 0.0:
-            motion = self._goal - tool_tip_world(q0, self._base)
+            tip0 = tool_tip_world(q0, self._base)
+            motion = self._goal - tip0
             self._est = _guard_estimator(ctx, self._robot, motion)
+            if p.taut_within is not None:
+                self._tip0 = tip0
+                self._unit = motion / distance
 
     def step(self, ctx: Any, obs: Any) -> Any:
         """Track the trajectory; report success at the goal, failure if it is not reached.
@@ -182,6 +213,18 @@ class MoveTo(Skill):
                 # stop where the strand became taut: the trajectory's point now, at rest
                 hold = Command({self._robot: RobotCommand.trusted_position(sample.q, None)})
                 return StepResult(hold, SkillStatus.SUCCESS)
+            if self._unit is not None:
+                assert p.taut_within is not None
+                tip = tool_tip_world(ro.q, self._base)
+                travel = float((tip - self._tip0) @ self._unit)
+                if travel > p.taut_within:
+                    hold = Command({self._robot: RobotCommand.trusted_position(sample.q, None)})
+                    return StepResult(
+                        hold,
+                        SkillStatus.FAILURE,
+                        f"tension {p.until_tension:.2f} N not reached within "
+                        f"{p.taut_within * 1e3:.1f} mm of travel",
+                    )
         if not sample.done:
             return StepResult(command)
         tip = tool_tip_world(obs.robots[self._robot].q, self._base)

@@ -58,9 +58,11 @@ def test_commands_follow_the_quintic_to_the_target_and_are_frozen() -> None:
 
 
 # ----------------------------------------------------------------- guarded move
-def _guarded_run(pull_N: float) -> tuple[str, float, float]:
-    """The guarded move along +x on PyBullet; from 0.8 s a force ``pull_N`` [N] pulls the tip
-    back along -x for 0.5 s (a strand pulled taut). Returns the outcome, the time the move
+def _guarded_run(
+    pull_N: float, procedure: str = "guarded.yaml", pull_at_s: float = 0.8
+) -> tuple[str, float, float]:
+    """The guarded move along +x on PyBullet; from ``pull_at_s`` a force ``pull_N`` [N] pulls
+    the tip back along -x for 0.5 s (a strand pulled taut). Returns the outcome, the time the move
     ended [s] and how far the tip went along x [m]."""
     from test_monitor import PROCS, _pybullet_run
 
@@ -69,14 +71,14 @@ def _guarded_run(pull_N: float) -> tuple[str, float, float]:
 
     def on_tick(it: Any) -> None:
         t = round(it._obs.t, 3)
-        if t == 0.8 and pull_N > 0.0:
+        if t == pull_at_s and pull_N > 0.0:
             it.backend.apply_external_force("endobot_1", (-pull_N, 0.0, 0.0), 0.5)
         z = float(it.backend.robots["endobot_1"].true_tool_pose()[0][0])
         rise.append(z)
         if it.automaton.step_name != "take-up" and not ended:
             ended.append(t)
 
-    _, summary = _pybullet_run(PROCS / "guarded.yaml", [], on_tick, 6.0)
+    _, summary = _pybullet_run(PROCS / procedure, [], on_tick, 6.0)
     return summary.outcome, (ended or [math.inf])[0], rise[-1] - rise[0]
 
 
@@ -93,6 +95,52 @@ def test_a_guarded_move_that_takes_nothing_up_fails() -> None:
     assert outcome == "aborted"  # the step's policy: then abort
     assert rise == pytest.approx(0.03, abs=0.003)  # it went all the way: nothing pulled
     assert ended > 4.0
+
+
+def _min_jerk_time(fraction: float, duration: float) -> float:
+    """When a rest-to-rest quintic has covered ``fraction`` of its path [s] (bisection)."""
+    lo, hi = 0.0, 1.0
+    for _ in range(60):
+        tau = 0.5 * (lo + hi)
+        if 10 * tau**3 - 15 * tau**4 + 6 * tau**5 < fraction:
+            lo = tau
+        else:
+            hi = tau
+    return lo * duration
+
+
+def test_a_guard_met_within_its_travel_bound_succeeds_as_without_it() -> None:
+    """taut_within 3 mm: the pull at 0.8 s comes after ~0.7 mm of travel; the move stops
+    there, done, as the unbounded guarded move does."""
+    outcome, ended, rise = _guarded_run(1.0, "guarded-within.yaml")
+    assert outcome == "succeeded"
+    assert 0.8 < ended < 0.9
+    assert 0.0 < rise < 0.002
+
+
+@pytest.mark.parametrize("pull_N", [0.0, 1.0])
+def test_a_guard_not_met_within_its_travel_bound_stops_the_move_there_failed(
+    pull_N: float,
+) -> None:
+    """taut_within 3 mm: with no pull, or a pull that comes only at 3 s (~17 mm along), the
+    move stops ~3 mm along (at the time the planned quintic crosses 3 of its 30 mm), failed,
+    long before it would have reached the target."""
+    outcome, ended, rise = _guarded_run(pull_N, "guarded-within.yaml", pull_at_s=3.0)
+    assert outcome == "aborted"  # the step's policy: then abort
+    # the planned 30 mm at a 10 mm/s peak: 1.875 * 3 s (the quintic's peak is 1.875x its mean)
+    crossing = _min_jerk_time(0.1, 1.875 * 3.0)
+    assert crossing < ended < crossing + 0.05  # the guard is read from the measured joints
+    assert rise == pytest.approx(0.003, abs=0.0003)
+
+
+def test_taut_within_without_a_guard_is_a_validation_problem() -> None:
+    params = MoveTo.Params.model_validate(
+        {"robot": "arm", "target": (0.0, 0.0, 0.1), "taut_within": 0.003}
+    )
+    problems = MoveTo.check(params, None)
+    assert [(p.code, p.path) for p in problems] == [("taut-within-without-guard", "taut_within")]
+    guarded = params.model_copy(update={"until_tension": 0.5})
+    assert MoveTo.check(guarded, None) == []
 
 
 def test_a_roll_only_move_turns_at_the_peak_roll_rate() -> None:
