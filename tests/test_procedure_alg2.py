@@ -369,7 +369,7 @@ def test_a_missed_second_throw_is_caught_in_its_take_up_and_the_run_fails(
     trace = TraceReader(tmp_path / "run" / "trace.mcap")
     details = [m.data["detail"] for m in trace.messages(["/events"])]
     assert "exhausted:mirrored-knot.not-tied" in details
-    assert "skill-failure:tension 0.10 N not reached within 8.0 mm of travel" in details
+    assert "skill-failure:tension 0.10 N not reached within 6.5 mm of travel" in details
     entered = [m.data["dest"] for m in trace.messages(["/transitions"])]
     assert "autonomous/mirrored-knot.drop-loop" in entered
     assert not any(d.endswith("mirrored-knot.pass-needle") for d in entered)
@@ -612,13 +612,14 @@ def test_the_mirrored_pass_locks_when_the_tools_squeeze_the_strand() -> None:
         assert first == pytest.approx(limit) and first > FIRST_PASS_ESTIMATE_N
 
 
-TAKE_UP_TIED_MM = 5.07
+TAKE_UP_TIED_MM = 5.08
 """Most travel of the mirrored ``take-up`` before its 0.1 N guard was met on the throws
-that tied (stitched start, seeds 0, 1, 2, 3, 5 and 12: 4.06-5.07 mm), from the stitcher's
-joints in their traces [mm] (docs/status.md)."""
-TAKE_UP_SLIPPED_MM = 11.14
-"""Least travel before the guard was met on throws whose loop slipped off the grasper's
-end in the take-up (seeds 4 and 7: 11.14-11.36 mm) [mm]."""
+that tied (stitched start, seeds 0-3, 5, 12, 14 and 16-19: 4.03-5.08 mm), from the
+stitcher's joints in their traces [mm] (docs/status.md)."""
+TAKE_UP_UNTIED_MM = 7.88
+"""Least travel before the guard was met on throws that tied no second knot: seeds 4 and
+7, whose loop slipped off the grasper's end (11.14-11.36 mm), and a perturbed run
+(``benchmarks/knot_success.py`` run 0, 7.88 mm) [mm]."""
 
 
 @pytest.mark.parametrize(
@@ -654,7 +655,7 @@ def test_the_mirrored_take_up_must_draw_taut_before_the_loop_could_have_slipped(
         # the same guarded move as the unchecked take-up, only bounded
         assert guard.target == unchecked.target and guard.speed == unchecked.speed
         assert guard.until_tension == unchecked.until_tension
-        assert TAKE_UP_TIED_MM * 1e-3 < guard.taut_within < TAKE_UP_SLIPPED_MM * 1e-3
+        assert TAKE_UP_TIED_MM * 1e-3 < guard.taut_within < TAKE_UP_UNTIED_MM * 1e-3
         step = plan.steps["mirrored-knot.take-up-checked"]
         assert step.policy.goto == "mirrored-knot.drop-loop"
         assert plan.steps["mirrored-knot.drop-loop"].enabled
