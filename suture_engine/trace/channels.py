@@ -22,7 +22,8 @@ Channels (``<robot>`` is a robot name such as ``left`` or ``right``):
                            universal joint angles ``bend`` [rad] (none while straight)
 ``/hook_load/<robot>``     the flexible hook's actuator load along its stroke [N], when it
                            changes (none while the hook is unloaded)
-``/tension/estimated``     suture tension estimated from the measurements [N]
+``/tension/estimated``     suture tension estimated from the measurements [N]: per tick
+                           the larger of the robots' estimates, with that robot's name
 ``/qp/<robot>``            move-constrained QP: status, iterations, active constraints
                            (solve time [us] is wall-clock data: dropped by default)
 ``/ground_truth/suture``   simulator's suture centerline as x, y, z arrays [m], at a lower
