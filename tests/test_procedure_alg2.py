@@ -634,7 +634,7 @@ def test_the_mirrored_take_up_must_draw_taut_before_the_loop_could_have_slipped(
     params: dict[str, Any], checked: bool
 ) -> None:
     """With the check on, the mirrored throw's take-up is guarded within a travel that lies
-    between where the tied throws' strand went taut and where the slipped ones' did; not
+    between where the tied throws' strand went taut and where the untied ones' did; not
     taut by then, the hook is retracted and the throw ends failed (before the needle is
     passed). The first throw's take-up, an unmirrored second throw and the unchecked one
     keep the unbounded guarded move, which goes on slack."""
@@ -642,21 +642,17 @@ def test_the_mirrored_take_up_must_draw_taut_before_the_loop_could_have_slipped(
 
     proc: Any = load_procedure(ROOT / "procedures" / "square-knot.yaml", params=params)
     plan = compile_procedure(proc)
-    first = proc.states["simple-knot"].use.states
-    assert first["take-up"].enabled and not first["take-up-checked"].enabled
-    assert first["take-up"].params.taut_within is None
+    first = proc.states["simple-knot"].use.states["take-up"].params
+    assert first.taut_within is None
     assert plan.steps["simple-knot.take-up"].policy.goto == "simple-knot.clear-stem"
-    second = proc.states["mirrored-knot"].use.states
-    assert second["take-up-checked"].enabled is checked
-    assert second["take-up"].enabled is not checked
+    second = proc.states["mirrored-knot"].use.states["take-up"].params
+    step = plan.steps["mirrored-knot.take-up"]
+    assert step.on_done == "mirrored-knot.clear-stem"
     if checked:
-        guard = second["take-up-checked"].params
-        unchecked = second["take-up"].params
-        # the same guarded move as the unchecked take-up, only bounded
-        assert guard.target == unchecked.target and guard.speed == unchecked.speed
-        assert guard.until_tension == unchecked.until_tension
-        assert TAKE_UP_TIED_MM * 1e-3 < guard.taut_within < TAKE_UP_UNTIED_MM * 1e-3
-        step = plan.steps["mirrored-knot.take-up-checked"]
+        assert TAKE_UP_TIED_MM * 1e-3 < second.taut_within < TAKE_UP_UNTIED_MM * 1e-3
+        assert second.until_tension is not None
         assert step.policy.goto == "mirrored-knot.drop-loop"
         assert plan.steps["mirrored-knot.drop-loop"].enabled
-        assert step.on_done == "mirrored-knot.clear-stem"
+    else:
+        assert second.taut_within is None
+        assert step.policy.goto == "mirrored-knot.clear-stem"
