@@ -180,6 +180,7 @@ class MoveTo(Skill):
         self._traj = MinJerk(q0, q1, duration)
         self._t0 = ctx.t0
         self._est = None
+        self._tip0 = self._unit = None
         if p.until_tension is not None and distance > 0.0:
             tip0 = tool_tip_world(q0, self._base)
             motion = self._goal - tip0
