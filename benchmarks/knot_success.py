@@ -34,7 +34,10 @@ Usage::
 
     python benchmarks/knot_success.py [--seeds 20] [--algorithms 1,2,3] [--max-time 300]
         [--workers 2] [--out runs/knot-success] [--backend pybullet-surgical]
-        [--base-seed 0] [--no-perturb] [--bending-stiffness EI] [--single]
+        [--base-seed 0] [--no-perturb] [--bending-stiffness EI] [--single] [--resume]
+
+The table is rewritten after every run, so a stopped sweep keeps its rows; ``--resume``
+keeps them and runs only the runs still missing (same algorithm, run and seed).
 """
 
 from __future__ import annotations
@@ -48,8 +51,8 @@ import math
 import sys
 import time
 from collections import Counter
-from collections.abc import Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, field
 from multiprocessing import get_context
 from pathlib import Path
@@ -319,13 +322,58 @@ def tally(rows: Sequence[Row]) -> list[Tally]:
 
 
 def write_csv(rows: Sequence[Row], path: Path) -> None:
-    """All rows, one per run."""
+    """All rows, one per run, sorted by algorithm and run; written to a temporary file
+    and renamed over ``path``."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    with path.open("w", newline="", encoding="utf-8") as fh:
+    tmp = path.with_name(path.name + ".tmp")
+    with tmp.open("w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
         w.writerow(Row._fields)
         for r in sorted(rows, key=lambda r: (r.algorithm, r.run)):
             w.writerow(r)
+    tmp.replace(path)
+
+
+def _bool(text: str) -> bool:
+    return text == "True"
+
+
+_TYPES: dict[str, Callable[[str], Any]] = {
+    "algorithm": int, "run": int, "seed": int, "success": _bool, "max_tension_N": float,
+    "sim_time_s": float, "wall_time_s": float, "friction_scale": float,
+    "stiffness_scale": float, "base_error_mm": float,
+}  # fmt: skip
+"""How each column of ``results.csv`` reads back (the others are text)."""
+
+
+def read_csv(path: Path) -> list[Row]:
+    """The rows of a ``results.csv`` written by :func:`write_csv` ([] when there is none).
+
+    Raises:
+        ValueError: the file is not such a table (its header or a value is wrong).
+    """
+    if not path.exists():
+        return []
+    with path.open(newline="", encoding="utf-8") as fh:
+        table = list(csv.reader(fh))
+    if not table or tuple(table[0]) != Row._fields:
+        raise ValueError(f"{path}: not a results table (header {table[:1]})")
+    rows = []
+    for line, values in enumerate(table[1:], start=2):
+        try:
+            rows.append(
+                Row(*(_TYPES.get(k, str)(v) for k, v in zip(Row._fields, values, strict=True)))
+            )
+        except ValueError as exc:
+            raise ValueError(f"{path}, line {line}: {exc}") from None
+    return rows
+
+
+def pending(jobs: Sequence[Job], done: Sequence[Row]) -> list[Job]:
+    """The jobs with no row in ``done`` for the same algorithm, run and seed (so a row from
+    another base seed never stands in for a run)."""
+    have = {(r.algorithm, r.run, r.seed) for r in done}
+    return [j for j in jobs if (j.algorithm, j.run, j.seed) not in have]
 
 
 def main(argv: Sequence[str]) -> int:
@@ -342,6 +390,11 @@ def main(argv: Sequence[str]) -> int:
     ap.add_argument("--no-perturb", action="store_true")
     ap.add_argument(
         "--bending-stiffness", type=float, default=None, help="nominal thread EI [N*m^2]"
+    )
+    ap.add_argument(
+        "--resume",
+        action="store_true",
+        help="keep the rows already in OUT/results.csv and run only the missing runs",
     )
     args = ap.parse_args(list(argv))
     if args.backend is None:
@@ -390,11 +443,24 @@ def main(argv: Sequence[str]) -> int:
     else:
         print("perturbations: off (--no-perturb)")
     t0 = time.perf_counter()
+    results = args.out / "results.csv"
     rows: list[Row] = []
+    if args.resume:
+        try:
+            kept = read_csv(results)
+        except ValueError as exc:
+            ap.error(f"--resume: {exc}")
+        wanted = {(j.algorithm, j.run, j.seed) for j in jobs}
+        rows = [r for r in kept if (r.algorithm, r.run, r.seed) in wanted]
+        jobs = pending(jobs, rows)
+        print(f"resuming: {len(rows)} run(s) kept from {results}, {len(jobs)} to run")
     ctx = get_context("spawn")
     with ProcessPoolExecutor(args.workers, mp_context=ctx) as pool:
-        for row in pool.map(run_one, jobs):
+        futures = [pool.submit(run_one, j) for j in jobs]
+        for fut in as_completed(futures):
+            row = fut.result()
             rows.append(row)
+            write_csv(rows, results)  # after every run: a stopped sweep keeps its rows
             note = f"  {row.error}" if row.error else ""
             print(
                 f"  alg {row.algorithm} run {row.run:3d} seed {row.seed:10d}: {row.outcome:9s} "
@@ -402,7 +468,7 @@ def main(argv: Sequence[str]) -> int:
                 f"{row.sim_time_s:6.1f} s sim {row.wall_time_s:6.1f} s wall{note}",
                 flush=True,
             )
-    write_csv(rows, args.out / "results.csv")
+    write_csv(rows, results)
     print(
         f"\n{'algorithm':>9s} {'runs':>5s} {'success':>8s} {'rate':>6s} "
         f"{'95% Wilson':>15s}  outcomes / knots"

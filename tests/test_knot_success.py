@@ -136,6 +136,38 @@ def test_results_csv_has_one_row_per_run(tmp_path: Path) -> None:
     assert len(lines) == 3
 
 
+def test_results_csv_reads_back_as_the_rows_written(tmp_path: Path) -> None:
+    rows = [
+        ks.Row(2, 1, 7, "failed", "unknot", False, 5.6, 119.6, 268.4, 1.22, 1.13, 1.69, ""),
+        ks.Row(2, 0, 9, "error", "", False, float("nan"), 0.0, 2.5, 0.7, 1.0, 1.4, "E: x, y"),
+        ks.Row(3, 0, 4, "succeeded", "square", True, 1.0, 150.0, 300.0, 1.0, 1.0, 0.5, ""),
+    ]
+    path = tmp_path / "results.csv"
+    ks.write_csv(rows, path)
+    back = ks.read_csv(path)
+    assert [r.run for r in back] == [0, 1, 0]  # sorted by algorithm, then run
+    assert back[1] == rows[0] and back[2] == rows[2]
+    assert back[0].error == "E: x, y" and math.isnan(back[0].max_tension_N)
+    assert not list(tmp_path.glob("*.tmp"))
+    assert ks.read_csv(tmp_path / "none.csv") == []
+
+
+def test_a_foreign_results_table_is_refused_with_its_path(tmp_path: Path) -> None:
+    path = tmp_path / "results.csv"
+    path.write_text("a,b\n1,2\n")
+    with pytest.raises(ValueError, match=r"results\.csv"):
+        ks.read_csv(path)
+
+
+def test_resume_runs_only_the_runs_without_a_row_of_the_same_seed(tmp_path: Path) -> None:
+    jobs = ks.make_jobs([2], 3, base_seed=0, backend="pybullet-surgical-stitched",
+                        out=tmp_path, max_time_s=1.0, perturb=True, accepted=set())  # fmt: skip
+    rest = ("failed", "", False, 0.0, 1.0, 1.0, 1.0, 1.0, 0.0, "")
+    # run 0 is done; run 1's row is of another seed (another base seed's run 1)
+    done = [ks.Row(2, 0, jobs[0].seed, *rest), ks.Row(2, 1, jobs[1].seed + 1, *rest)]
+    assert [j.run for j in ks.pending(jobs, done)] == [1, 2]
+
+
 def test_command_line_refuses_bad_algorithms() -> None:
     with pytest.raises(SystemExit) as err:
         ks.main(["--algorithms", "4", "--seeds", "1"])
