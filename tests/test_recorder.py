@@ -137,6 +137,26 @@ def test_fast_path_is_taken_and_matches_json_on_a_tick(tmp_path: Path) -> None:
     assert json.loads(by_topic["/ground_truth/tension"]) == {"tension_N": 2.0}
 
 
+@pytest.mark.parametrize("fast", [True, False])
+def test_the_estimated_tension_carries_every_robots_estimate(tmp_path: Path, fast: bool) -> None:
+    rec = _recorder(tmp_path / "t.mcap", fast=fast)
+    obs = _observation(0, np.random.default_rng(3))
+    tension = {"endobot_1": 0.25, "endobot_2": 1.5e-7}
+    rec.tick(0, obs, {}, {}, tension, {})
+    tension = {"endobot_1": 0.25, "endobot_2": 3.5}
+    rec.tick(1_000_000, obs, {}, {}, tension, {})
+    rec.close()
+    msgs = [m.data for m in TraceReader(tmp_path / "t.mcap").messages(["/tension/estimated"])]
+    assert msgs == [
+        {"robot": "endobot_1", "tension_N": 0.25,
+         "estimates": [{"robot": "endobot_1", "tension_N": 0.25},
+                       {"robot": "endobot_2", "tension_N": 1.5e-7}]},
+        {"robot": "endobot_2", "tension_N": 3.5,
+         "estimates": [{"robot": "endobot_1", "tension_N": 0.25},
+                       {"robot": "endobot_2", "tension_N": 3.5}]},
+    ]  # fmt: skip
+
+
 def test_a_run_records_the_same_trace_on_both_paths(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

@@ -60,6 +60,32 @@ def test_tension_limit_line_is_drawn_only_with_a_limit(tmp_path: Path) -> None:
     assert _count_red(fig_b.png) == 0
 
 
+def _tension_trace(path: Path, per_robot: bool) -> Path:
+    meta = TraceMeta(procedure="t", seed=0, control_rate_hz=1000.0, robots=("left", "right"))
+    with TraceWriter(path, meta, fsync=False) as w:
+        for k in range(200):
+            left, right = 1.0 + 0.5 * np.sin(k / 20), 0.5 + 0.002 * k
+            msg: dict[str, object] = {"tension_N": max(left, right), "robot": "left"}
+            if per_robot:
+                msg["estimates"] = [
+                    {"robot": "left", "tension_N": left},
+                    {"robot": "right", "tension_N": right},
+                ]
+            w.write(channels.TENSION_ESTIMATED, k * 1_000_000, msg)
+    return path
+
+
+def test_each_robots_estimate_is_drawn_when_the_trace_has_them(tmp_path: Path) -> None:
+    green, purple, blue = (0x2C, 0xA0, 0x2C), (0x94, 0x67, 0xBD), (0x1F, 0x77, 0xB4)
+    (each,) = render_figures(load_trace(_tension_trace(tmp_path / "a.mcap", True)), ["tension"])
+    (top,) = render_figures(load_trace(_tension_trace(tmp_path / "b.mcap", False)), ["tension"])
+    assert _count_colour(each.png, green) > 200 and _count_colour(each.png, purple) > 200
+    assert _count_colour(each.png, blue) == 0  # the larger-of series is not drawn twice
+    assert _count_colour(top.png, green) == 0 and _count_colour(top.png, purple) == 0
+    assert _count_colour(top.png, blue) > 200
+    assert each.missing == top.missing == ("/ground_truth/tension",)
+
+
 def test_timeline_shows_the_notbe_episode(tmp_path: Path) -> None:
     notbe_red = (0xD6, 0x27, 0x28)
     (fig,) = render_figures(load_trace(write_known_trace(tmp_path / "trace.mcap")), ["timeline"])

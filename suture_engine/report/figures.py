@@ -67,6 +67,8 @@ FIGURE_NAMES: tuple[str, ...] = (
 _NOTBE = "~notbe"
 _DPI = 100
 _COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#17becf")
+_ROBOT_COLOURS = ("#2ca02c", "#9467bd", "#8c564b", "#17becf")
+"""Each robot's own tension estimate (none red: red is the tension limit's line)."""
 
 
 @dataclass(frozen=True)
@@ -403,15 +405,41 @@ def _task_path(data: TraceData) -> RenderedFigure:
     )
 
 
+def _per_robot_estimates(rows: Sequence[tuple[float, Any]]) -> dict[str, tuple[Any, Any]]:
+    """Each robot's own estimate over time, from the ``estimates`` of ``/tension/estimated``
+    (empty for traces written before the field)."""
+    import numpy as np
+
+    series: dict[str, tuple[list[float], list[float]]] = {}
+    for t, m in rows:
+        each = m.get("estimates") if isinstance(m, dict) else None
+        for e in each if isinstance(each, list) else ():
+            if isinstance(e, dict) and isinstance(e.get("tension_N"), int | float):
+                ts, vs = series.setdefault(str(e.get("robot")), ([], []))
+                ts.append(t)
+                vs.append(e["tension_N"])
+    return {
+        r: (np.array(ts, dtype=float), np.array(vs, dtype=float)) for r, (ts, vs) in series.items()
+    }
+
+
 def _tension(data: TraceData) -> RenderedFigure:
     fig = _new_figure(9, 3.2)
     ax = fig.subplots()
     missing: list[str] = []
     drawn = False
+    rows = data.get(channels.TENSION_ESTIMATED)
+    each = _per_robot_estimates(rows)
+    for i, (robot, (t, v)) in enumerate(sorted(each.items())):
+        colour = _ROBOT_COLOURS[i % len(_ROBOT_COLOURS)]
+        ax.plot(t, v, lw=0.9, color=colour, label=f"estimated, {robot}")
+        drawn = True
     for topic, label, colour in (
         (channels.TENSION_ESTIMATED, "estimated", _COLOURS[0]),
         (channels.GROUND_TRUTH_TENSION, "true (simulator)", _COLOURS[1]),
     ):
+        if topic == channels.TENSION_ESTIMATED and each:
+            continue  # drawn per robot (the larger of them is this series)
         t, v = _scalar(data.get(topic), "tension_N")
         if t.size == 0:
             missing.append(topic)

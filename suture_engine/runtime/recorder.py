@@ -244,7 +244,7 @@ class TraceRecorder(Recorder):
             if tau is not None:
                 vectors.append(tau)
         if robot_name is not None:
-            vectors.append([float(tension[robot_name])])
+            vectors.append([float(v) for v in tension.values()])
         if true_tension is not None:
             vectors.append([float(true_tension)])
         texts = self._encode_vectors(vectors)
@@ -263,7 +263,17 @@ class TraceRecorder(Recorder):
                 batch.append((cmd, b'{"kind":"torque","mode":%b,"values":[%b]}' % (mode, texts[k])))
                 k += 1
         if robot_name is not None:
-            text = b'{"robot":%b,"tension_N":%b}' % (self._bytes(robot_name), texts[k])
+            values = texts[k].split(b",")  # a number's text holds no comma
+            each = b",".join(
+                b'{"robot":%b,"tension_N":%b}' % (self._bytes(name), value)
+                for name, value in zip(tension, values, strict=True)
+            )
+            top = values[list(tension).index(robot_name)]
+            text = b'{"estimates":[%b],"robot":%b,"tension_N":%b}' % (
+                each,
+                self._bytes(robot_name),
+                top,
+            )
             batch.append((self._ch.TENSION_ESTIMATED, text))
             k += 1
         if true_tension is not None:
@@ -294,7 +304,11 @@ class TraceRecorder(Recorder):
                 msg = {"kind": "torque", "values": _floats(tau), "mode": modes.get(name)}
                 batch.append((cmd, encode(msg)))
         if robot_name is not None:
-            msg2 = {"tension_N": float(tension[robot_name]), "robot": robot_name}
+            msg2 = {
+                "tension_N": float(tension[robot_name]),
+                "robot": robot_name,
+                "estimates": [{"robot": n, "tension_N": float(v)} for n, v in tension.items()],
+            }
             batch.append((self._ch.TENSION_ESTIMATED, encode(msg2)))
         if true_tension is not None:
             batch.append(

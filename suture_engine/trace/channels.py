@@ -23,7 +23,8 @@ Channels (``<robot>`` is a robot name such as ``left`` or ``right``):
 ``/hook_load/<robot>``     the flexible hook's actuator load along its stroke [N], when it
                            changes (none while the hook is unloaded)
 ``/tension/estimated``     suture tension estimated from the measurements [N]: per tick
-                           the larger of the robots' estimates, with that robot's name
+                           the larger of the robots' estimates, with that robot's name,
+                           and every robot's own estimate (``estimates``)
 ``/qp/<robot>``            move-constrained QP: status, iterations, active constraints
                            (solve time [us] is wall-clock data: dropped by default)
 ``/ground_truth/suture``   simulator's suture centerline as x, y, z arrays [m], at a lower
@@ -352,10 +353,20 @@ CATALOGUE: tuple[ChannelSpec, ...] = (
             {
                 "tension_N": {**_NUM, "description": "estimated tension [N]"},
                 "robot": {**_OPT_STR, "description": "robot whose sensor it comes from"},
+                "estimates": {
+                    "type": "array",
+                    "items": {
+                        "type": "object",
+                        "properties": {"robot": _STR, "tension_N": _NUM},
+                        "required": ["robot", "tension_N"],
+                    },
+                    "description": "every robot's own estimate [N], in the scene's order",
+                },
             },
             ["tension_N"],
         ),
-        "Suture tension estimated from the measurements (thesis ch. 4) [N].",
+        "Suture tension estimated from the measurements (thesis ch. 4) [N]: the larger "
+        "estimate, and every robot's.",
     ),
     ChannelSpec(
         "/qp/<robot>",
