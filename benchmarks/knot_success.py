@@ -35,6 +35,10 @@ Usage::
     python benchmarks/knot_success.py [--seeds 20] [--algorithms 1,2,3] [--max-time 300]
         [--workers 2] [--out runs/knot-success] [--backend pybullet-surgical]
         [--base-seed 0] [--no-perturb] [--bending-stiffness EI] [--single] [--resume]
+        [--only base,friction,stiffness]
+
+``--only`` applies only the named perturbations (an ablation): run ``i`` keeps the
+values run ``i`` draws, the others stay nominal.
 
 The table is rewritten after every run, so a stopped sweep keeps its rows; ``--resume``
 keeps them and runs only the runs still missing (same algorithm, run and seed).
@@ -94,6 +98,21 @@ class Perturbation:
     base_error: Mapping[str, tuple[float, float, float]] = field(default_factory=dict)
     friction_scale: float = 1.0
     stiffness_scale: float = 1.0
+
+
+KINDS = {"base": "base_error", "friction": "friction_scale", "stiffness": "stiffness_scale"}
+"""``--only`` names -> the :class:`Perturbation` field each one sets."""
+
+
+def keep_only(perturbation: Perturbation, kinds: Sequence[str]) -> Perturbation:
+    """The perturbation with only ``kinds`` (keys of :data:`KINDS`) kept, the others at
+    their nominal values (the values kept are the ones drawn, so an ablation's run ``i``
+    has run ``i``'s draw)."""
+    nominal = Perturbation()
+    keep = {KINDS[k] for k in kinds}
+    return Perturbation(
+        **{f: getattr(perturbation if f in keep else nominal, f) for f in KINDS.values()}
+    )
 
 
 def draw_perturbation(rng: np.random.Generator, robots: Sequence[str] = ROBOTS) -> Perturbation:
@@ -201,6 +220,7 @@ def make_jobs(
     max_time_s: float,
     perturb: bool,
     accepted: set[str],
+    only: Sequence[str] | None = None,
 ) -> list[Job]:
     """Every run's seed, perturbation and backend options (module doc)."""
     jobs = []
@@ -210,6 +230,8 @@ def make_jobs(
             seed = int(ss.generate_state(1, dtype=np.uint32)[0] & 0x7FFFFFFF)
             rng = np.random.default_rng(ss.spawn(1)[0])
             pert = draw_perturbation(rng) if perturb else Perturbation()
+            if perturb and only is not None:
+                pert = keep_only(pert, only)
             opts = backend_options(pert, accepted)[0] if perturb else {}
             out_dir = str(out / "runs" / f"alg{alg}-{i:03d}")
             jobs.append(Job(alg, i, seed, pert, opts, backend, out_dir, max_time_s))
@@ -389,6 +411,12 @@ def main(argv: Sequence[str]) -> int:
     ap.add_argument("--base-seed", type=int, default=0)
     ap.add_argument("--no-perturb", action="store_true")
     ap.add_argument(
+        "--only",
+        default=None,
+        help="apply only these perturbations, comma-separated from base,friction,stiffness "
+        "(each run keeps its own draw of them; the others stay nominal)",
+    )
+    ap.add_argument(
         "--bending-stiffness", type=float, default=None, help="nominal thread EI [N*m^2]"
     )
     ap.add_argument(
@@ -408,9 +436,17 @@ def main(argv: Sequence[str]) -> int:
     accepted = accepted_options(args.backend)
     _, applied, missing = backend_options(draw_perturbation(np.random.default_rng(0)), accepted)
     perturb = not args.no_perturb
+    only = None
+    if args.only is not None:
+        only = [k.strip() for k in args.only.split(",") if k.strip()]
+        if not only or any(k not in KINDS for k in only) or args.no_perturb:
+            ap.error(f"--only: comma-separated from {','.join(KINDS)}, without --no-perturb; "
+                     f"got {args.only!r}")  # fmt: skip
+        applied = tuple(a for a in applied if a in {KINDS[k] for k in only})
+        missing = tuple(m for m in missing if m in {KINDS[k] for k in only})
     jobs = make_jobs(
         algorithms, args.seeds, base_seed=args.base_seed, backend=args.backend, out=args.out,
-        max_time_s=args.max_time, perturb=perturb, accepted=accepted,
+        max_time_s=args.max_time, perturb=perturb, accepted=accepted, only=only,
     )  # fmt: skip
     jobs = [j._replace(single=args.single) for j in jobs]
     nominal_ei = args.bending_stiffness
@@ -429,6 +465,8 @@ def main(argv: Sequence[str]) -> int:
     )
     if perturb:
         print(f"perturbations applied: {', '.join(applied) or 'none'}")
+        if only is not None:
+            print(f"  (--only {','.join(only)}: the others stay nominal)")
         if missing:
             print(f"NOT applied (the backend takes no option for them): {', '.join(missing)}")
         if (

@@ -66,6 +66,27 @@ def test_a_runs_inputs_do_not_depend_on_the_other_algorithms() -> None:
     assert len({j.out_dir for j in _jobs([1, 2, 3], set())}) == 9
 
 
+def test_an_ablation_keeps_each_runs_own_draw_of_the_kinds_it_names() -> None:
+    full = _jobs([2], set())
+    common = {"base_seed": 7, "backend": "x", "out": Path("/tmp/unused"), "max_time_s": 10.0,
+              "perturb": True, "accepted": set()}  # fmt: skip
+    base = ks.make_jobs([2], 3, only=["base"], **common)  # type: ignore[arg-type]
+    fric = ks.make_jobs([2], 3, only=["friction"], **common)  # type: ignore[arg-type]
+    for f, b, c in zip(full, base, fric, strict=True):
+        assert b.seed == c.seed == f.seed
+        assert b.perturbation.base_error == f.perturbation.base_error
+        assert (b.perturbation.friction_scale, b.perturbation.stiffness_scale) == (1.0, 1.0)
+        assert c.perturbation.friction_scale == f.perturbation.friction_scale != 1.0
+        assert dict(c.perturbation.base_error) == {} and c.perturbation.stiffness_scale == 1.0
+
+
+def test_command_line_refuses_an_unknown_ablation() -> None:
+    for bad in (["--only", "base,gravity"], ["--only", ","], ["--only", "base", "--no-perturb"]):
+        with pytest.raises(SystemExit) as err:
+            ks.main(["--algorithms", "2", "--seeds", "1", *bad])
+        assert err.value.code == 2
+
+
 def test_perturbations_go_only_where_the_backend_takes_them() -> None:
     pert = ks.draw_perturbation(np.random.default_rng(1))
     opts, applied, missing = ks.backend_options(pert, {"friction_scale", "gui"})
