@@ -65,6 +65,11 @@ class MoveToParams(SkillParams):
     measured joints, from where the step started) before the guard must be met. Past it
     the move stops where it is and fails: the strand did not go taut where it should
     have (a loop that slipped off a tool takes up much later). ``None``: the whole move."""
+    taut_after: Length | None = Field(default=None, gt=0.0)
+    """With ``until_tension``: how far the tip must have travelled along the move [m]
+    (measured as for ``taut_within``) before the guard may be met. Met earlier, the move
+    stops there and fails: the strand was already held by something else (with
+    ``taut_within``, a window on where the strand goes taut). ``None``: from the start."""
 
 
 class MoveTo(Skill):
@@ -106,20 +111,33 @@ class MoveTo(Skill):
 
     @classmethod
     def check(cls, params: SkillParams, scene: Any) -> list[Problem]:
-        """``taut_within`` needs the guard (``until_tension``) it bounds."""
+        """``taut_within`` and ``taut_after`` need the guard (``until_tension``) they
+        bound, and ``taut_after`` must lie below ``taut_within``."""
         from suture_engine.validation.problem import Problem
 
         assert isinstance(params, MoveToParams)
-        if params.taut_within is not None and params.until_tension is None:
-            return [
-                Problem(
-                    "taut-within-without-guard",
-                    "taut_within bounds where a guarded move's tension must be met: "
-                    "give until_tension too",
-                    path="taut_within",
+        problems = []
+        for name in ("taut_within", "taut_after"):
+            if getattr(params, name) is not None and params.until_tension is None:
+                problems.append(
+                    Problem(
+                        name.replace("_", "-") + "-without-guard",
+                        f"{name} bounds where a guarded move's tension must be met: "
+                        "give until_tension too",
+                        path=name,
+                    )
                 )
-            ]
-        return []
+        within, after = params.taut_within, params.taut_after
+        if within is not None and after is not None and not after < within:
+            problems.append(
+                Problem(
+                    "taut-window-empty",
+                    f"taut_after ({after * 1e3:g} mm) must be less than taut_within "
+                    f"({within * 1e3:g} mm): no travel could meet both",
+                    path="taut_after",
+                )
+            )
+        return problems
 
     def _target_world(self, ctx: Any) -> tuple[float, float, float]:
         from suture_engine.runtime.trajectory import tool_tip_world
@@ -185,7 +203,7 @@ class MoveTo(Skill):
             tip0 = tool_tip_world(q0, self._base)
             motion = self._goal - tip0
             self._est = _guard_estimator(ctx, self._robot, motion)
-            if p.taut_within is not None:
+            if p.taut_within is not None or p.taut_after is not None:
                 self._tip0 = tip0
                 self._unit = motion / distance
 
@@ -210,14 +228,22 @@ class MoveTo(Skill):
             ro = obs.robots[self._robot]
             tension = self._est.update(ro.base_wrench, ro.q).tension
             assert p.until_tension is not None
+            travel = math.nan
+            if self._unit is not None:
+                tip = tool_tip_world(ro.q, self._base)
+                travel = float((tip - self._tip0) @ self._unit)
             if tension >= p.until_tension:
                 # stop where the strand became taut: the trajectory's point now, at rest
                 hold = Command({self._robot: RobotCommand.trusted_position(sample.q, None)})
+                if p.taut_after is not None and travel < p.taut_after:
+                    return StepResult(
+                        hold,
+                        SkillStatus.FAILURE,
+                        f"tension {p.until_tension:.2f} N reached after only {travel * 1e3:.1f} "
+                        f"mm of travel (not before {p.taut_after * 1e3:.1f} mm)",
+                    )
                 return StepResult(hold, SkillStatus.SUCCESS)
-            if self._unit is not None:
-                assert p.taut_within is not None
-                tip = tool_tip_world(ro.q, self._base)
-                travel = float((tip - self._tip0) @ self._unit)
+            if p.taut_within is not None:
                 if travel > p.taut_within:
                     hold = Command({self._robot: RobotCommand.trusted_position(sample.q, None)})
                     return StepResult(

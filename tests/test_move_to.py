@@ -133,6 +133,24 @@ def test_a_guard_not_met_within_its_travel_bound_stops_the_move_there_failed(
     assert rise == pytest.approx(0.003, abs=0.0003)
 
 
+def test_a_guard_met_before_its_travel_floor_stops_the_move_there_failed() -> None:
+    """taut_after 3 mm: a pull at 0.8 s comes after ~0.7 mm of travel (the quintic's
+    0.8 s of 5.625 s): the move stops there as a guarded move does, but failed."""
+    outcome, ended, rise = _guarded_run(1.0, "guarded-after.yaml")
+    assert outcome == "aborted"  # the step's policy: then abort
+    assert 0.8 < ended < 0.9
+    tau = 0.8 / (1.875 * 3.0)
+    assert rise == pytest.approx(0.03 * (10 * tau**3 - 15 * tau**4 + 6 * tau**5), abs=0.0003)
+
+
+def test_a_guard_met_past_its_travel_floor_succeeds_as_without_it() -> None:
+    """taut_after 3 mm: a pull at 2 s comes ~7 mm along; the move stops there, done."""
+    outcome, ended, rise = _guarded_run(1.0, "guarded-after.yaml", pull_at_s=2.0)
+    assert outcome == "succeeded"
+    assert 2.0 < ended < 2.1
+    assert 0.003 < rise < 0.009
+
+
 def test_taut_within_without_a_guard_is_a_validation_problem() -> None:
     params = MoveTo.Params.model_validate(
         {"robot": "arm", "target": (0.0, 0.0, 0.1), "taut_within": 0.003}
@@ -141,6 +159,19 @@ def test_taut_within_without_a_guard_is_a_validation_problem() -> None:
     assert [(p.code, p.path) for p in problems] == [("taut-within-without-guard", "taut_within")]
     guarded = params.model_copy(update={"until_tension": 0.5})
     assert MoveTo.check(guarded, None) == []
+
+
+def test_taut_after_needs_a_guard_and_room_below_taut_within() -> None:
+    params = MoveTo.Params.model_validate(
+        {"robot": "arm", "target": (0.0, 0.0, 0.1), "taut_after": 0.004}
+    )
+    problems = MoveTo.check(params, None)
+    assert [(p.code, p.path) for p in problems] == [("taut-after-without-guard", "taut_after")]
+    window = params.model_copy(update={"until_tension": 0.5, "taut_within": 0.006})
+    assert MoveTo.check(window, None) == []
+    for within in (0.004, 0.003):
+        empty = window.model_copy(update={"taut_within": within})
+        assert [p.code for p in MoveTo.check(empty, None)] == ["taut-window-empty"]
 
 
 def test_a_roll_only_move_turns_at_the_peak_roll_rate() -> None:
