@@ -620,6 +620,13 @@ TAKE_UP_UNTIED_MM = 7.88
 """Least travel before the guard was met on throws that tied no second knot: seeds 4 and
 7, whose loop slipped off the grasper's end (11.14-11.36 mm), and a perturbed run
 (``benchmarks/knot_success.py`` run 0, 7.88 mm) [mm]."""
+TAKE_UP_TIED_LEAST_MM = 4.03
+"""Least travel before the guard was met on the throws that tied (as ``TAKE_UP_TIED_MM``)
+[mm]."""
+TAKE_UP_HELD_MM = 0.48
+"""Travel before the guard was met on a perturbed run whose first throw had tied a
+figure-eight (``benchmarks/knot_success.py --seeds 20``, run 2): the strand was taut at
+once, and the cinch's guard was met all the same [mm]."""
 
 
 @pytest.mark.parametrize(
@@ -634,25 +641,27 @@ def test_the_mirrored_take_up_must_draw_taut_before_the_loop_could_have_slipped(
     params: dict[str, Any], checked: bool
 ) -> None:
     """With the check on, the mirrored throw's take-up is guarded within a travel that lies
-    between where the tied throws' strand went taut and where the untied ones' did; not
-    taut by then, the hook is retracted and the throw ends failed (before the needle is
-    passed). The first throw's take-up, an unmirrored second throw and the unchecked one
-    keep the unbounded guarded move, which goes on slack."""
+    between where the tied throws' strand went taut and where the untied ones' did, and
+    after a floor between where a strand held elsewhere went taut and where the tied ones'
+    did; outside that window the hook is retracted and the throw ends failed (before the
+    needle is passed). The first throw's take-up, an unmirrored second throw and the
+    unchecked one keep the unbounded guarded move, which goes on slack."""
     from suture_engine.runtime.plan import compile_procedure
 
     proc: Any = load_procedure(ROOT / "procedures" / "square-knot.yaml", params=params)
     plan = compile_procedure(proc)
     first = proc.states["simple-knot"].use.states["take-up"].params
-    assert first.taut_within is None
+    assert first.taut_within is None and first.taut_after is None
     assert plan.steps["simple-knot.take-up"].policy.goto == "simple-knot.clear-stem"
     second = proc.states["mirrored-knot"].use.states["take-up"].params
     step = plan.steps["mirrored-knot.take-up"]
     assert step.on_done == "mirrored-knot.clear-stem"
     if checked:
         assert TAKE_UP_TIED_MM * 1e-3 < second.taut_within < TAKE_UP_UNTIED_MM * 1e-3
+        assert TAKE_UP_HELD_MM * 1e-3 < second.taut_after < TAKE_UP_TIED_LEAST_MM * 1e-3
         assert second.until_tension is not None
         assert step.policy.goto == "mirrored-knot.drop-loop"
         assert plan.steps["mirrored-knot.drop-loop"].enabled
     else:
-        assert second.taut_within is None
+        assert second.taut_within is None and second.taut_after is None
         assert step.policy.goto == "mirrored-knot.clear-stem"
