@@ -240,7 +240,7 @@ class MoveTo(Skill):
                         hold,
                         SkillStatus.FAILURE,
                         f"tension {p.until_tension:.2f} N reached after only {travel * 1e3:.1f} "
-                        f"mm of travel (not before {p.taut_after * 1e3:.1f} mm)",
+                        f"mm of travel (not before {p.taut_after * 1e3:.2f} mm)",
                     )
                 return StepResult(hold, SkillStatus.SUCCESS)
             if p.taut_within is not None:

@@ -117,7 +117,10 @@ class PassJaws(Skill):
                 self._t_phase = obs.t
             elif obs.t - self._t_phase >= self.JAW_S:
                 return StepResult(
-                    cmd, SkillStatus.FAILURE, f"jaw {self.receiving_jaw} did not close"
+                    cmd,
+                    SkillStatus.FAILURE,
+                    f"jaw {self.receiving_jaw} did not close on the needle (the hand-over "
+                    "stopped short of it, or the jaw is stuck)",
                 )
             else:
                 return StepResult(cmd)

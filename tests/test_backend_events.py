@@ -115,6 +115,51 @@ def test_a_pull_below_the_grip_limit_reports_none() -> None:
         be.close()
 
 
+def test_a_needle_hand_over_that_stops_short_is_reported_and_reads_as_not_passed() -> None:
+    """A stitcher's needle whose thread runs straight, slack-free, to an anchor along the
+    hand-over's way: the hand-over stops short at the needle drive's force, the backend
+    reports one ``needle-stall`` and the receiving jaw does not read closed, so that the
+    step that asked for the hand-over cannot take it as done."""
+    p = pytest.importorskip("pybullet")
+    from backends.pybullet.backend import PyBulletBackend
+    from backends.pybullet.suture import Suture, SutureParams, configure_physics, straight_path
+    from backends.pybullet.tools import Stitcher
+    from suture_engine.runtime.observation import ToolState
+
+    c = p.connect(p.DIRECT)
+    configure_physics(c)
+    p.setGravity(0, 0, 0, physicsClientId=c)
+    jaw0 = np.array([-4e-3, 0.0, 3e-3])
+    sut = Suture.create(
+        c, straight_path(tuple(jaw0 - [0.06, 0, 0]), (1, 0, 0), 0.06),
+        SutureParams(length=0.06, n_segments=12),
+    )  # fmt: skip
+    p.changeDynamics(sut.bodies[0], -1, mass=0.0, physicsClientId=c)
+    st = Stitcher.create(c, "st", (0, 0, 0), needle_body=sut.needle_body, place_needle=False)
+    be = PyBulletBackend()
+    be._p, be.client = p, c
+    be.scene = SimpleNamespace(tools={"endobot_1": st}, suture=sut, tissue=None, time=0.0)
+    be._tools = {"endobot_1": ToolState("stitcher", True, False)}
+    try:
+        for _ in range(100):
+            be._physics_step()
+        asked = ToolState("stitcher", True, True)  # the receiving jaw closed: pass it
+        be._drive_tool("endobot_1", be._tools["endobot_1"], asked)
+        be._tools["endobot_1"] = asked
+        events: list[BackendEvent] = []
+        for _ in range(400):
+            be._physics_step()
+            events += be.backend_events()
+        assert [(e.name, e.robot) for e in events] == [("needle-stall", "endobot_1")]
+        detail = json.loads(events[0].detail)
+        assert detail["jaw"] == 0 and detail["shortfall_mm"] > 2.0
+        reading = be._tool_reading("endobot_1")
+        assert (reading.jaw_closed, reading.jaw2_closed) == (True, False)
+        assert st.needle_holder == 0
+    finally:
+        be.close()
+
+
 def test_an_unknown_backend_event_is_refused() -> None:
     with pytest.raises(ValueError, match="unknown backend event"):
         BackendEvent("slipped", "endobot_1", "{}")

@@ -340,6 +340,59 @@ def test_needle_pass_carries_the_thread_across_the_jaw_gap() -> None:
         p.disconnect(physicsClientId=c)
 
 
+@pytest.mark.parametrize("drive", [5.0, 50.0])
+def test_a_needle_held_back_by_a_taut_thread_stops_short_at_the_drives_force(
+    drive: float,
+) -> None:
+    """The thread runs straight from the needle in jaw 0 away along -x to an anchor, with
+    no slack: the hand-over's sweep along +x stretches it. With the drive at 5 N the needle
+    stops short, the giving jaw keeps it and a stall is recorded, and the thread's own
+    joint forces (the oracle) stay near the drive's force; with a 50 N drive the same
+    hand-over pulls the thread far past it (as a perturbed run's did, to 13.8 N)."""
+    import pybullet as p
+
+    from backends.pybullet.suture import Suture, configure_physics, straight_path
+
+    c = p.connect(p.DIRECT)
+    try:
+        configure_physics(c)
+        p.setGravity(0, 0, 0, physicsClientId=c)  # no sag: straight and slack-free
+        jaw0 = np.array([-4e-3, 0.0, 3e-3])
+        sut = Suture.create(
+            c,
+            straight_path(tuple(jaw0 - [0.06, 0, 0]), (1, 0, 0), 0.06),
+            SutureParams(length=0.06, n_segments=12),
+        )
+        st = Stitcher.create(
+            c, "st", (0.0, 0.0, 0.0), needle_body=sut.needle_body, place_needle=False,
+            needle_drive_force=drive,
+        )  # fmt: skip
+        p.changeDynamics(sut.bodies[0], -1, mass=0.0, physicsClientId=c)  # the anchor
+        peak = 0.0
+
+        def run(seconds: float) -> None:
+            nonlocal peak
+            for _ in range(round(seconds * 1000)):
+                st.step()
+                sut.pre_step()
+                p.stepSimulation(physicsClientId=c)
+                peak = max(peak, float(np.max(sut.tensions())))
+
+        run(0.1)
+        settled, peak = peak, 0.0
+        st.pass_needle()
+        run(st.travel_time + 0.2)
+        if drive == 5.0:
+            assert settled < 1.0
+            assert st.needle_holder == 0 and len(st.stalls) == 1
+            assert st.stalls[0].giving == 0 and st.stalls[0].shortfall > 2e-3
+            assert 3.0 < peak < 1.3 * drive
+        else:
+            assert peak > 2 * 5.0
+    finally:
+        p.disconnect(physicsClientId=c)
+
+
 @pytest.mark.parametrize("f_static", [0.3, pytest.param(0.6, marks=pytest.mark.slow)])
 def test_tissue_channel_friction_resists_pulling_with_4_5(f_static: float) -> None:
     """Drag a threaded suture through the channel at constant speed: the extra grip force over

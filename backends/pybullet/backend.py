@@ -213,6 +213,7 @@ class PyBulletBackend:
         self.scene: Any = None
         """The :class:`backends.pybullet.scene.Scene` when the surgical scene is built."""
         self._slips_seen: dict[str, int] = {}
+        self._stalls_seen: dict[str, int] = {}
         """Per robot, how many of its grasper's slips :meth:`backend_events` has given."""
 
     def _bases(self, scene: Any) -> dict[str, tuple[Any, Any, str]]:
@@ -259,6 +260,7 @@ class PyBulletBackend:
         self._forces = []
         self._hands = []
         self._slips_seen = {}
+        self._stalls_seen = {}
         self.tick = 0
         self._start_q = dict(self._q0)
         base_positions = {}
@@ -490,15 +492,15 @@ class PyBulletBackend:
 
     def _tool_reading(self, name: str) -> ToolState:
         """The tool state as measured: the commanded one, except that a stitcher's
-        receiving jaw reads closed only once the needle hand-over is done, and that a
-        simulated hook's actuator reports its load."""
+        receiving jaw reads closed only once the needle hand-over is done (never after one
+        that stopped short), and that a simulated hook's actuator reports its load."""
         state = self._tools[name]
         tool = self.scene.tools.get(name) if self.scene is not None else None
         if tool is None:
             return state
         if getattr(tool, "hook_body", -1) >= 0:
             return replace(state, hook_load=round(tool.hook_load(), self.HOOK_LOAD_DIGITS))
-        if not getattr(tool, "passing", False):
+        if not (getattr(tool, "passing", False) or getattr(tool, "stalled", False)):
             return state
         if tool.needle_holder == 0:
             return ToolState(state.kind, state.jaw_closed, False, state.hook_extension, state.bend)
@@ -611,7 +613,10 @@ class PyBulletBackend:
         (:class:`~backends.pybullet.tools.GripSlip`), detail ``t`` (the tool's clock [s]),
         ``force_N`` (the pull the jaws held in the step before [N]), ``slid_mm`` (how far
         the thread slid [mm]), ``from_segment``/``to_segment`` (the capsules held before
-        and after; -1: none)."""
+        and after; -1: none); and a ``needle-stall`` per needle hand-over that stopped
+        short (:class:`~backends.pybullet.tools.NeedleStall`), detail ``t`` [s],
+        ``shortfall_mm`` (how far from the receiving jaw [mm]) and ``jaw`` (the jaw that
+        keeps the needle, 0 or 1)."""
         events = []
         for robot, tool in self._graspers().items():
             seen = self._slips_seen.get(robot, 0)
@@ -627,6 +632,22 @@ class PyBulletBackend:
                     BackendEvent("grip-slip", robot, json.dumps(detail, separators=(",", ":")))
                 )
             self._slips_seen[robot] = len(tool.slips)
+        tools = self.scene.tools if self.scene is not None else {}
+        for robot, tool in sorted(tools.items()):
+            stalls = getattr(tool, "stalls", None)
+            if not stalls:
+                continue
+            seen = self._stalls_seen.get(robot, 0)
+            for stall in stalls[seen:]:
+                detail = {
+                    "t": round(stall.time, 6),
+                    "shortfall_mm": round(1e3 * stall.shortfall, 4),
+                    "jaw": stall.giving,
+                }
+                events.append(
+                    BackendEvent("needle-stall", robot, json.dumps(detail, separators=(",", ":")))
+                )
+            self._stalls_seen[robot] = len(stalls)
         return events
 
     def run_metrics(self) -> dict[str, Any]:

@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import TYPE_CHECKING, NamedTuple
+from typing import TYPE_CHECKING, ClassVar, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -45,6 +45,7 @@ __all__ = [
     "Grasper",
     "GripSlip",
     "JawState",
+    "NeedleStall",
     "Stitcher",
     "Tool",
     "ToolError",
@@ -100,6 +101,21 @@ class GripSlip(NamedTuple):
     to_segment: int
     distance: float
     force: float
+
+
+class NeedleStall(NamedTuple):
+    """A needle hand-over that stopped short: the thread held the needle back harder than
+    the hand-over's drive pushes (``Stitcher.needle_drive_force``).
+
+    Attributes:
+        time: the tool's clock when the hand-over ended (its steps times ``dt``) [s].
+        shortfall: how far the needle stopped from the receiving jaw [m].
+        giving: index of the jaw that keeps the needle (0: the -x jaw, 1: the +x jaw).
+    """
+
+    time: float
+    shortfall: float
+    giving: int
 
 
 class JawState(Enum):
@@ -1040,19 +1056,37 @@ class Stitcher(Tool):
     be lost, which is the fault :meth:`drop_needle` already models. A pull through the
     needle is bounded by the monitor's layers, not by the jaws.
 
+    The hand-over's drive is weaker than the jaws': it pushes the needle across with at
+    most ``needle_drive_force``. A thread that holds the needle back harder (caught on a
+    jaw or a tool, with no slack left) stops it short; the hand-over then fails, the
+    giving jaw keeps the needle where it stopped, and the receiving jaw never reads
+    closed on it (a :class:`NeedleStall` is recorded). With the full drive, such a
+    hand-over stretched the thread to 13.8 N inside the jaws, where no base sensor sees it.
+
     Attributes:
         gap: distance between the closed jaws along the tip's x [m].
         open_width: how far each jaw moves out when opening [m].
         travel_time: jaw travel time and needle hand-over time [s].
         needle_holder: index (0: the -x jaw, 1: the +x jaw) of the jaw holding the needle.
         opening: jaw opening, 0 closed to 1 open [-].
+        needle_drive_force: the most force the hand-over's drive applies to the needle [N].
+        stalls: the hand-overs that stopped short, in order.
     """
+
+    HANDOVER_TOLERANCE: ClassVar[float] = 1e-3
+    """How far from the receiving jaw a needle may end its hand-over and still be taken
+    [m]."""
 
     gap: float = 8e-3
     open_width: float = 4e-3
     travel_time: float = 0.2
     needle_holder: int = 0
     opening: float = 0.0
+    needle_drive_force: float = 5.0
+    stalls: list[NeedleStall] = field(default_factory=list)
+    stalled: bool = False
+    """The last hand-over stopped short (until the jaws open or another is asked for)."""
+    _steps: int = 0
     jaws: list[int] = field(default_factory=list)
     needle_body: int = -1
     _target: float = 0.0
@@ -1164,6 +1198,7 @@ class Stitcher(Tool):
         called off."""
         self._target = 1.0
         self._pending = False
+        self.stalled = False
 
     def close_jaws(self) -> None:
         """Start closing the jaws (takes ``travel_time``)."""
@@ -1179,6 +1214,7 @@ class Stitcher(Tool):
         """Hand the needle over as soon as the jaws are closed (now if they are)."""
         if self.needle_body >= 0 and self._lock >= 0 and not self.passing:
             self._pending = True
+            self.stalled = False
 
     @property
     def holds_needle(self) -> bool:
@@ -1249,20 +1285,36 @@ class Stitcher(Tool):
             childFrameOrientation=list(rel_o),
             physicsClientId=c,
         )
-        p.changeConstraint(self._lock, maxForce=self.drive_force, physicsClientId=c)
+        p.changeConstraint(self._lock, maxForce=self.needle_drive_force, physicsClientId=c)
+
+    def _sweep_target(self, fraction: float) -> FloatArray:
+        """Where the sweep holds the needle's origin, ``fraction`` of the way across, in the
+        tip body's frame [m]."""
+        a = self._jaw_offset(self.needle_holder)
+        b = self._jaw_offset(1 - self.needle_holder)
+        return a + (b - a) * min(max(fraction, 0.0), 1.0) + self._sweep_from
+
+    def _shortfall(self) -> float:
+        """How far the needle's origin is from the sweep's end point, in the tip frame [m]."""
+        import pybullet as p
+
+        c = self.client
+        pb, ob = p.getBasePositionAndOrientation(self.body, physicsClientId=c)
+        pn, _ = p.getBasePositionAndOrientation(self.needle_body, physicsClientId=c)
+        inv_p, inv_o = p.invertTransform(pb, ob)
+        rel, _ = p.multiplyTransforms(inv_p, inv_o, pn, _IDENTITY)
+        return float(np.linalg.norm(np.asarray(rel) - self._sweep_target(1.0)))
 
     def _sweep(self, fraction: float) -> None:
         """Move the needle ``fraction`` of the way from the giving to the receiving jaw."""
         import pybullet as p
 
-        a = self._jaw_offset(self.needle_holder)
-        b = self._jaw_offset(1 - self.needle_holder)
-        at = a + (b - a) * min(max(fraction, 0.0), 1.0) + self._sweep_from
+        at = self._sweep_target(fraction)
         p.changeConstraint(
             self._lock,
             jointChildPivot=at.tolist(),
             jointChildFrameOrientation=list(self._sweep_orientation),
-            maxForce=self.drive_force,
+            maxForce=self.needle_drive_force,
             physicsClientId=self.client,
         )
 
@@ -1275,6 +1327,7 @@ class Stitcher(Tool):
         """
         import pybullet as p
 
+        self._steps += 1
         self._cancel_weight()
         if self.opening != self._target:
             rate = self.dt / self.travel_time
@@ -1291,6 +1344,11 @@ class Stitcher(Tool):
         self._sweep(1.0 - max(self._timer, 0.0) / self.travel_time)
         if self._timer < 0.0:
             self._timer = -1.0
+            short = self._shortfall()
             p.removeConstraint(self._lock, physicsClientId=self.client)
-            self.needle_holder = 1 - self.needle_holder
+            if short > self.HANDOVER_TOLERANCE:  # stopped short: the giving jaw keeps it
+                self.stalls.append(NeedleStall(self._steps * self.dt, short, self.needle_holder))
+                self.stalled = True
+            else:
+                self.needle_holder = 1 - self.needle_holder
             self._lock = self._attach(self.jaws[self.needle_holder], self.needle_body)

@@ -176,8 +176,9 @@ def scene_geometry(
     )
 
 
-BACKEND_EVENTS = frozenset({"grip-slip"})
-"""Names of the events a backend may report (:class:`BackendEvent`)."""
+BACKEND_EVENTS = frozenset({"grip-slip", "needle-stall"})
+"""Names of the events a backend may report (:class:`BackendEvent`): the thread slid
+through a grasper's jaws; a needle hand-over stopped short."""
 
 
 @dataclass(frozen=True)
