@@ -52,16 +52,19 @@ def test_tool_commands_drive_the_simulated_tools() -> None:
         # the tail-held start: the grasper holds the thread's free end, the needle is in jaw 0
         assert grasper.state is JawState.CLOSED and grasper.held_segment == 0
         assert stitcher.needle_holder == 0
+        # Stitcher: close the needle's jaw, then the other one: the needle is handed over
+        # (the thread slack from the start; after the grasper below has let go of the
+        # thread's end and closed again, the hand-over would pull a taut strand: it stops
+        # short at the hand-over drive's 5 N, where the former 50 N drive drew 24.9 N).
+        _hold(be, {"endobot_1": ToolCommand(jaw_closed=True, jaw2_closed=False)}, 200)
+        assert stitcher.needle_holder == 0
+        _hold(be, {"endobot_1": ToolCommand(jaw_closed=True, jaw2_closed=True)}, 400)
+        assert stitcher.needle_holder == 1 and not stitcher.stalls
         _hold(be, {"endobot_2": ToolCommand(jaw_closed=False)}, 400)
         assert grasper.state is JawState.OPEN and grasper.held_segment == -1
         _hold(be, {"endobot_2": ToolCommand(jaw_closed=True, hook_extension=0.01)}, 400)
         assert grasper.state is JawState.CLOSED
         assert grasper.hook_extension == pytest.approx(1.0)  # extended over the hinge
-        # Stitcher: close the needle's jaw, then the other one: the needle is handed over.
-        _hold(be, {"endobot_1": ToolCommand(jaw_closed=True, jaw2_closed=False)}, 200)
-        assert stitcher.needle_holder == 0
-        _hold(be, {"endobot_1": ToolCommand(jaw_closed=True, jaw2_closed=True)}, 400)
-        assert stitcher.needle_holder == 1
         _hold(be, {"endobot_2": ToolCommand(jaw_closed=False, hook_extension=0.0)}, 400)
         assert grasper.state is JawState.OPEN and grasper.hook_extension == pytest.approx(0.0)
         # The hook skill ramps its setpoint and ends within its tolerance: a command that
