@@ -213,8 +213,9 @@ class PyBulletBackend:
         self.scene: Any = None
         """The :class:`backends.pybullet.scene.Scene` when the surgical scene is built."""
         self._slips_seen: dict[str, int] = {}
-        self._stalls_seen: dict[str, int] = {}
         """Per robot, how many of its grasper's slips :meth:`backend_events` has given."""
+        self._stalls_seen: dict[str, int] = {}
+        """Per robot, how many of its stitcher's needle stalls it has given."""
 
     def _bases(self, scene: Any) -> dict[str, tuple[Any, Any, str]]:
         robots = getattr(scene, "robots", None)
