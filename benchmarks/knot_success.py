@@ -41,7 +41,8 @@ Usage::
 values run ``i`` draws, the others stay nominal.
 
 The table is rewritten after every run, so a stopped sweep keeps its rows; ``--resume``
-keeps them and runs only the runs still missing (same algorithm, run and seed).
+keeps them and runs only the runs still missing (same algorithm, run, seed and
+perturbation).
 """
 
 from __future__ import annotations
@@ -280,10 +281,7 @@ def run_one(job: Job) -> Row:
     """Run one job in a worker; any exception becomes an ``error`` row (a failure)."""
     from suture_engine.runtime.run import run_procedure
 
-    base_mm = max(
-        (float(np.linalg.norm(v)) * 1e3 for v in job.perturbation.base_error.values()),
-        default=0.0,
-    )
+    base_mm = _base_error_mm(job.perturbation)
     start = time.perf_counter()
     common = (job.perturbation.friction_scale, job.perturbation.stiffness_scale, base_mm)
     try:
@@ -391,11 +389,29 @@ def read_csv(path: Path) -> list[Row]:
     return rows
 
 
+def _base_error_mm(perturbation: Perturbation) -> float:
+    """The largest of the robots' base errors [mm] (the table's ``base_error_mm``)."""
+    return max(
+        (float(np.linalg.norm(v)) * 1e3 for v in perturbation.base_error.values()), default=0.0
+    )
+
+
+def _job_key(job: Job) -> tuple[Any, ...]:
+    pert = job.perturbation
+    return (job.algorithm, job.run, job.seed, pert.friction_scale, pert.stiffness_scale,
+            _base_error_mm(pert))  # fmt: skip
+
+
+def _row_key(row: Row) -> tuple[Any, ...]:
+    return (row.algorithm, row.run, row.seed, row.friction_scale, row.stiffness_scale,
+            row.base_error_mm)  # fmt: skip
+
+
 def pending(jobs: Sequence[Job], done: Sequence[Row]) -> list[Job]:
-    """The jobs with no row in ``done`` for the same algorithm, run and seed (so a row from
-    another base seed never stands in for a run)."""
-    have = {(r.algorithm, r.run, r.seed) for r in done}
-    return [j for j in jobs if (j.algorithm, j.run, j.seed) not in have]
+    """The jobs with no row in ``done`` for the same algorithm, run, seed and perturbation
+    (so a row of another base seed or of another ``--only`` never stands in for a run)."""
+    have = {_row_key(r) for r in done}
+    return [j for j in jobs if _job_key(j) not in have]
 
 
 def main(argv: Sequence[str]) -> int:
@@ -488,8 +504,8 @@ def main(argv: Sequence[str]) -> int:
             kept = read_csv(results)
         except ValueError as exc:
             ap.error(f"--resume: {exc}")
-        wanted = {(j.algorithm, j.run, j.seed) for j in jobs}
-        rows = [r for r in kept if (r.algorithm, r.run, r.seed) in wanted]
+        wanted = {_job_key(j) for j in jobs}
+        rows = [r for r in kept if _row_key(r) in wanted]
         jobs = pending(jobs, rows)
         print(f"resuming: {len(rows)} run(s) kept from {results}, {len(jobs)} to run")
     ctx = get_context("spawn")

@@ -12,6 +12,7 @@ import math
 import sys
 from pathlib import Path
 from types import ModuleType
+from typing import Any
 
 import numpy as np
 import pytest
@@ -183,10 +184,22 @@ def test_a_foreign_results_table_is_refused_with_its_path(tmp_path: Path) -> Non
 def test_resume_runs_only_the_runs_without_a_row_of_the_same_seed(tmp_path: Path) -> None:
     jobs = ks.make_jobs([2], 3, base_seed=0, backend="pybullet-surgical-stitched",
                         out=tmp_path, max_time_s=1.0, perturb=True, accepted=set())  # fmt: skip
-    rest = ("failed", "", False, 0.0, 1.0, 1.0, 1.0, 1.0, 0.0, "")
-    # run 0 is done; run 1's row is of another seed (another base seed's run 1)
-    done = [ks.Row(2, 0, jobs[0].seed, *rest), ks.Row(2, 1, jobs[1].seed + 1, *rest)]
+
+    def row(job: Any, seed: int, friction: float) -> Any:
+        pert = job.perturbation
+        base_mm = max(float(np.linalg.norm(v)) * 1e3 for v in pert.base_error.values())
+        return ks.Row(2, job.run, seed, "failed", "", False, 0.0, 1.0, 1.0, friction,
+                      pert.stiffness_scale, base_mm, "")  # fmt: skip
+
+    f = [j.perturbation.friction_scale for j in jobs]
+    # run 0 is done; run 1's row is of another seed (another base seed's run 1); run 2's
+    # of another perturbation (an ablation's)
+    done = [row(jobs[0], jobs[0].seed, f[0]), row(jobs[1], jobs[1].seed + 1, f[1]),
+            row(jobs[2], jobs[2].seed, 1.0)]  # fmt: skip
     assert [j.run for j in ks.pending(jobs, done)] == [1, 2]
+    back = tmp_path / "results.csv"
+    ks.write_csv(done, back)
+    assert [j.run for j in ks.pending(jobs, ks.read_csv(back))] == [1, 2]  # floats read back
 
 
 def test_command_line_refuses_bad_algorithms() -> None:
