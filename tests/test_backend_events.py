@@ -156,6 +156,7 @@ def test_a_needle_hand_over_that_stops_short_is_reported_and_reads_as_not_passed
         reading = be._tool_reading("endobot_1")
         assert (reading.jaw_closed, reading.jaw2_closed) == (True, False)
         assert st.needle_holder == 0
+        assert be.run_metrics() == {"needle_stalls": 1}
     finally:
         be.close()
 

@@ -652,22 +652,28 @@ class PyBulletBackend:
         return events
 
     def run_metrics(self) -> dict[str, Any]:
-        """The run's figures for ``summary.json`` (surgical scene with graspers only):
+        """The run's figures for ``summary.json`` (surgical scene only): with graspers,
         ``grip_slips`` (how many times the thread slid through a grasper's jaws),
         ``grip_slip_mm`` (how far in all [mm]) and ``grip_slips_by_robot`` (robot ->
-        ``{"slips", "mm"}``, the graspers that slipped)."""
+        ``{"slips", "mm"}``, the graspers that slipped); with a stitcher,
+        ``needle_stalls`` (how many needle hand-overs stopped short)."""
+        metrics: dict[str, Any] = {}
         graspers = self._graspers()
-        if not graspers:
-            return {}
-        slipped = {robot: t for robot, t in graspers.items() if t.slips}
-        return {
-            "grip_slips": sum(len(t.slips) for t in slipped.values()),
-            "grip_slip_mm": round(1e3 * sum(t.slid for t in slipped.values()), 4),
-            "grip_slips_by_robot": {
-                robot: {"slips": len(t.slips), "mm": round(1e3 * t.slid, 4)}
-                for robot, t in slipped.items()
-            },
-        }
+        if graspers:
+            slipped = {robot: t for robot, t in graspers.items() if t.slips}
+            metrics |= {
+                "grip_slips": sum(len(t.slips) for t in slipped.values()),
+                "grip_slip_mm": round(1e3 * sum(t.slid for t in slipped.values()), 4),
+                "grip_slips_by_robot": {
+                    robot: {"slips": len(t.slips), "mm": round(1e3 * t.slid, 4)}
+                    for robot, t in slipped.items()
+                },
+            }
+        tools = self.scene.tools.values() if self.scene is not None else ()
+        stitchers = [t for t in tools if hasattr(t, "stalls")]
+        if stitchers:
+            metrics["needle_stalls"] = sum(len(t.stalls) for t in stitchers)
+        return metrics
 
     def geometry(self) -> SceneGeometry:
         """The scene's declared geometry."""

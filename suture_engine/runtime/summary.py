@@ -39,7 +39,8 @@ class RunSummary:
             plus the backend's own (``run_metrics()``; the PyBullet surgical scene with
             graspers: ``grip_slips``, the times the thread slid through a grasper's
             jaws, ``grip_slip_mm``, how far in all [mm], and ``grip_slips_by_robot``,
-            robot -> ``{"slips", "mm"}``).
+            robot -> ``{"slips", "mm"}``; with a stitcher: ``needle_stalls``, the needle
+            hand-overs that stopped short).
         knot: the ground-truth knot evaluation: one entry (a dict with ``type``,
             ``determinant``, ``v2``, ``v3``, ``seated``, ``post_straight``, ``lay``, ...),
             a list of them when the thread has several stitches (one per stitch), or
