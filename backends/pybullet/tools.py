@@ -28,7 +28,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from enum import Enum
-from typing import TYPE_CHECKING, ClassVar, NamedTuple
+from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -1259,8 +1259,8 @@ class Stitcher(Tool):
         side = (-1, 1)[k]
         return np.array([side * (self.gap / 2 + self.opening * self.open_width), 0.0, 3e-3])
 
-    def _start_sweep(self) -> None:
-        """Hand the needle from its jaw to the tip body's sweep constraint (same pose)."""
+    def _needle_in_tip(self) -> tuple[Any, Any]:
+        """The needle's pose in the tip body's frame (position [m], quaternion)."""
         import pybullet as p
 
         c = self.client
@@ -1268,6 +1268,14 @@ class Stitcher(Tool):
         pn, on = p.getBasePositionAndOrientation(self.needle_body, physicsClientId=c)
         inv_p, inv_o = p.invertTransform(pb, ob)
         rel_p, rel_o = p.multiplyTransforms(inv_p, inv_o, pn, on)
+        return rel_p, rel_o
+
+    def _start_sweep(self) -> None:
+        """Hand the needle from its jaw to the tip body's sweep constraint (same pose)."""
+        import pybullet as p
+
+        c = self.client
+        rel_p, rel_o = self._needle_in_tip()
         p.removeConstraint(self._lock, physicsClientId=c)
         # Parent: the needle at its origin; child: the tip body at the needle's pose in the
         # tip frame, so that changeConstraint's child pivot moves the needle in that frame.
@@ -1296,13 +1304,7 @@ class Stitcher(Tool):
 
     def _shortfall(self) -> float:
         """How far the needle's origin is from the sweep's end point, in the tip frame [m]."""
-        import pybullet as p
-
-        c = self.client
-        pb, ob = p.getBasePositionAndOrientation(self.body, physicsClientId=c)
-        pn, _ = p.getBasePositionAndOrientation(self.needle_body, physicsClientId=c)
-        inv_p, inv_o = p.invertTransform(pb, ob)
-        rel, _ = p.multiplyTransforms(inv_p, inv_o, pn, _IDENTITY)
+        rel, _ = self._needle_in_tip()
         return float(np.linalg.norm(np.asarray(rel) - self._sweep_target(1.0)))
 
     def _sweep(self, fraction: float) -> None:
