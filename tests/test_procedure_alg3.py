@@ -471,10 +471,11 @@ def test_the_mirrored_loop_keeps_the_shafts_apart() -> None:
     assert gap > 5e-3
 
 
-SLIDE_OFF_TIED_LEAST_MM = 66.19
+SLIDE_OFF_TIED_LEAST_MM = 64.73
 """Least travel of the first throw's ``slide-off`` before its 0.5 N guard was met on the
-throws that tied a trefoil (one turn, stitched start, seeds 1-3: 66.19-66.29 mm), from the
-holder's joints in their traces [mm] (docs/status.md)."""
+throws that tied a trefoil (one turn, stitched start: seeds 1-3, 66.19-66.29 mm; the five
+perturbed runs of ``benchmarks/knot_success.py --single --seeds 8`` that tied,
+64.73-70.57 mm), from the holder's joints in their traces [mm] (docs/status.md)."""
 SLIDE_OFF_GRIPPED_MM = 8.72
 """Most travel before the guard was met with two turns round the arm (seeds 1 and 2: 4.82
 and 4.80 mm at the 0.5 N guard; seed 1 with the guard raised to 1.5 and 2.5 N: 7.10 and
@@ -500,10 +501,10 @@ def test_the_slide_off_must_not_draw_taut_while_the_loop_grips_the_arm(
     """With the check on, the first throw's slide-off is guarded after a floor that lies
     between where the strand went taut with the loops still on the arm and where it went
     taut on the throws that tied; a guard met before it fails the step, and its policy
-    locks the robots (no retry: the loop is still on the arm). The
-    mirrored second throw's floor lies above where its loop, still on the arm, went taut
-    (no mirrored throw has been measured tying; an unmirrored second throw is not
-    checked). ``square-knot.yaml`` passes its ``check_throw`` to both throws."""
+    locks the robots (no retry: the loop is still on the arm). The mirrored second
+    throw's floor lies above where its loop, still on the arm, went taut (no mirrored
+    throw has been measured tying; an unmirrored second throw is not checked).
+    ``square-knot.yaml`` passes its ``check_throw`` to both throws."""
     from suture_engine.runtime.plan import compile_procedure
 
     proc: Any = load_procedure(ROOT / "procedures" / procedure, params=params)
