@@ -665,3 +665,97 @@ def test_the_mirrored_take_up_must_draw_taut_before_the_loop_could_have_slipped(
     else:
         assert second.taut_within is None and second.taut_after is None
         assert step.policy.goto == "mirrored-knot.clear-stem"
+
+
+TUG_TIED_MOST_MM = 9.18
+"""Most travel of a single throw's ``tug`` before its 0.3 N guard was met on throws that
+tied a trefoil (stitched start, seeds 1-4: 7.67-9.18 mm; two perturbed runs of
+``benchmarks/knot_success.py --single``: 7.47 and 9.11 mm), from the stitcher's joints in
+their traces [mm] (docs/status.md)."""
+TUG_UNTIED_LEAST_MM = 14.18
+"""Least travel before the guard was met on single throws that tied nothing (three
+perturbed runs: 14.18-32.45 mm), which had ended ``succeeded`` [mm]."""
+
+
+@pytest.mark.parametrize(
+    ("procedure", "params", "state", "tugs"),
+    [
+        ("knot-algorithm-2.yaml", {"stitch": False}, "tug", True),
+        ("knot-algorithm-2.yaml", {"stitch": False, "tug": False}, "tug", False),
+        ("knot-algorithm-2.yaml", {"stitch": False, "second": True}, "tug", False),
+        ("square-knot.yaml", {}, "simple-knot.tug", False),
+        ("secure-knot.yaml", {}, "first-throw.tug", False),
+        ("surgeons-knot.yaml", {}, "double-knot.tug", False),
+    ],
+)
+def test_a_single_throw_is_tugged_and_must_draw_taut_soon(
+    procedure: str, params: dict[str, Any], state: str, tugs: bool
+) -> None:
+    """A single first throw ends with a tug: the stitcher draws its end on, guarded, and
+    the strand must go taut within a bound that lies between where tied throws went taut
+    and where throws that tied nothing did; past it the step fails and the robots lock.
+    A second throw, and the first throw of a square, secured or surgeon's knot (laid out
+    for the knot as ``tighten`` leaves it), do not tug."""
+    from suture_engine.runtime.plan import compile_procedure
+
+    proc: Any = load_procedure(ROOT / "procedures" / procedure, params=params)
+    plan = compile_procedure(proc)
+    step = plan.steps[state]
+    assert step.enabled is tugs
+    if tugs:
+        tug = proc.states["tug"].params
+        assert tug.until_tension is not None and tug.taut_after is None
+        assert TUG_TIED_MOST_MM * 1e-3 < tug.taut_within < TUG_UNTIED_LEAST_MM * 1e-3
+        assert step.policy.retry == 0 and step.policy.then.value == "lock"
+        assert step.policy.goto is None
+        assert plan.steps["tighten"].on_done == "tug"
+
+
+@pytest.mark.slow
+def test_a_perturbed_throw_that_tied_nothing_is_caught_by_its_tug(tmp_path: Path) -> None:
+    """A single throw perturbed as ``benchmarks/knot_success.py --single`` run 5 (seed
+    1460747719: base errors 0.6 and 0.8 mm, joint friction x0.93) ties nothing; before the
+    tug it ended ``succeeded``. Its tug does not draw the strand taut within the bound, the
+    step fails and the robots lock (the run stops ``failed``). The ground truth agrees: no
+    knot. The true tension stays under the limit."""
+    import json
+
+    from suture_engine.runtime.run import run_procedure
+    from suture_engine.trace.reader import TraceReader
+
+    out = tmp_path / "run"
+    run_procedure(
+        ROOT / "procedures" / "knot-algorithm-2.yaml",
+        backend="pybullet-surgical-stitched",
+        seed=1460747719,
+        sets=["stitch=false"],
+        out=out,
+        max_time_s=100,
+        backend_options={
+            "base_error": {
+                "endobot_1": (
+                    0.0005132334704419497,
+                    0.00020623419746105105,
+                    -0.00024467348723075785,
+                ),
+                "endobot_2": (
+                    1.9440497395740745e-05,
+                    0.0007897906858387944,
+                    -0.00016989533703969432,
+                ),
+            },
+            "friction_scale": 0.9274261691983059,
+            "suture_stiffness_scale": 0.9142530303858456,
+        },
+    )
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["outcome"] == "failed" and summary["final_state"] == "lock"
+    faults = [
+        m.data
+        for m in TraceReader(out / "trace.mcap").messages(["/events"])
+        if m.data["kind"] == "unpredictable"
+    ]
+    assert faults[-1]["state"] == "autonomous/tug", faults
+    assert faults[-1]["detail"].startswith("skill-failure:tension 0.30 N not reached within")
+    assert summary["knot"]["type"] == "unknot"
+    assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
