@@ -65,7 +65,7 @@ states:
     "on": {done: move, failed: {retry: 0, then: abort}}
   move:
     skill: move-to
-    with: {robot: stitcher, relative_to: stitcher, target: [20 mm, 0 mm, -20 mm], speed: 10 mm/s,
+    with: {robot: stitcher, relative_to: stitcher, target: [MOVE_MM], speed: 10 mm/s,
            tolerance: 0.5 mm}
     timeout: 10 s
     "on": {done: move-held, failed: {retry: 0, then: abort}}
@@ -143,7 +143,8 @@ def main(argv: Sequence[str]) -> int:
     work = Path(tempfile.mkdtemp(prefix="settle-error-"))
     try:
         shutil.copy(SCENE, work / "scene.yaml")
-        (work / "procedure.yaml").write_text(PROCEDURE)
+        target = ", ".join(f"{v * 1e3:g} mm" for v in MOVE)
+        (work / "procedure.yaml").write_text(PROCEDURE.replace("MOVE_MM", target))
         print(f"backend {args.backend}; roll: grasper, half a turn; move: stitcher, 28 mm")
         heads = ("friction", "roll short, end", "after hold", "tip error, end", "after hold")
         print(" ".join(f"{h:>{w}}" for h, w in zip(heads, (9, 16, 11, 15, 11), strict=True)))
