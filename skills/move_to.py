@@ -47,9 +47,9 @@ class MoveToParams(SkillParams):
     """Tool roll q3 at the target [rad] (3.17); ``None`` keeps the current roll."""
     roll_tolerance: Angle | None = Field(default=None, gt=0.0, le=math.radians(30.0))
     """The roll error [rad] still accepted once the settling time is over (a roll joint
-    held by more than its friction and the roll's integral action overcome). The move
-    first waits, as without it, for the roll to come within
-    :attr:`MoveTo.ROLL_TOLERANCE` (0.2 deg). ``None``: no more than that."""
+    with more friction than its compensation knows ends a long roll short of its goal).
+    The move first waits, as without it, for the roll to come within
+    :attr:`MoveTo.ROLL_TOLERANCE` (3 deg). ``None``: no more than that."""
     speed: Speed = Field(default=0.01, gt=0.0, le=0.2)
     """Cruise speed of the tool tip [m/s]."""
     tolerance: Length = Field(default=0.5e-3, gt=0.0)
@@ -81,10 +81,7 @@ class MoveTo(Skill):
     straight-line peak tool speed ``speed``. The skill succeeds once the
     trajectory is over and the measured tool tip is within ``tolerance`` [m] of
     the goal, and fails if it is not there ``SETTLE_S`` [s] later (with a roll, also
-    ``ROLL_SETTLE_S``). A roll must come within ``ROLL_TOLERANCE``; after the
-    trajectory its set point leads the goal by integral action on the roll error
-    (``ROLL_INTEGRAL_GAIN``), so that the roll joint's static friction cannot hold it
-    short.
+    ``ROLL_SETTLE_S``).
     """
 
     name: ClassVar[str] = "move-to"
@@ -94,19 +91,12 @@ class MoveTo(Skill):
     """Time allowed after the trajectory's end to reach the tolerance [s]."""
     ROLL_SPEED: ClassVar[float] = 1.0
     """Peak roll rate of the tool [rad/s]: a 180 deg roll takes 5.9 s."""
-    ROLL_TOLERANCE: ClassVar[float] = math.radians(0.2)
+    ROLL_TOLERANCE: ClassVar[float] = math.radians(3.0)
     """Arrival tolerance of the roll when the move sets one [rad]."""
     ROLL_SETTLE_S: ClassVar[float] = 1.0
-    """Extra settling time when the move sets a roll [s]. Without integral action the
-    roll joint of the grasper (its tool loaded by the held thread) ended a 180 deg roll
-    3-4 deg short: the joint's Coulomb friction held it once the reference stopped
-    (the compensation follows the reference's velocity, which is then zero)."""
-    ROLL_INTEGRAL_GAIN: ClassVar[float] = 5.0
-    """Integral action on the roll once the trajectory is over [1/s]: while the roll is
-    more than ``ROLL_TOLERANCE`` off, its set point moves past the goal at this gain
-    times the error, until the joint breaks away from its static friction."""
-    ROLL_INTEGRAL_LIMIT: ClassVar[float] = math.radians(15.0)
-    """Anti-windup: the most the roll's set point may lead its goal [rad]."""
+    """Extra settling time when the move sets a roll [s]: on the surgical scene the roll
+    joint of the grasper (its tool loaded by the held thread) ends a 180 deg roll ~4 deg
+    behind and closes the last degree ~1.2 s after the trajectory."""
 
     def __init__(self, params: SkillParams) -> None:
         super().__init__(params)
@@ -118,7 +108,6 @@ class MoveTo(Skill):
         self._est: Any = None
         self._tip0: Any = None
         self._unit: Any = None
-        self._roll_lead = 0.0
 
     @classmethod
     def check(cls, params: SkillParams, scene: Any) -> list[Problem]:
@@ -208,7 +197,6 @@ class MoveTo(Skill):
         )
         self._traj = MinJerk(q0, q1, duration)
         self._t0 = ctx.t0
-        self._roll_lead = 0.0
         self._est = None
         self._tip0 = self._unit = None
         if p.until_tension is not None and distance > 0.0:
@@ -234,8 +222,6 @@ class MoveTo(Skill):
         assert isinstance(p, MoveToParams)
         t = obs.t - self._t0
         sample = self._traj(t)
-        if sample.done and p.roll is not None and self._est is None:
-            self._lead_roll(float(obs.robots[self._robot].q[2]), p.roll, ctx.dt, sample.q)
         # The sample's arrays are fresh (MinJerk computes new ones per call): handed over.
         command = Command({self._robot: RobotCommand.trusted_position(sample.q, sample.qd)})
         if self._est is not None:
@@ -294,22 +280,6 @@ class MoveTo(Skill):
                 f"{math.degrees(roll_error):.1f} deg off",
             )
         return StepResult(command)
-
-    def _lead_roll(self, roll: float, goal: float, dt: float, q_set: Any) -> None:
-        """Integral action on the roll after the trajectory (``ROLL_INTEGRAL_GAIN``).
-
-        Args:
-            roll: the measured roll q3 [rad].
-            goal: the roll goal [rad].
-            dt: the tick [s].
-            q_set: the set point sent this tick, its roll led past the goal in place.
-        """
-        error = goal - roll
-        if abs(error) > self.ROLL_TOLERANCE:
-            lead = self._roll_lead + self.ROLL_INTEGRAL_GAIN * error * dt
-            cap = self.ROLL_INTEGRAL_LIMIT
-            self._roll_lead = min(max(lead, -cap), cap)
-        q_set[2] += self._roll_lead
 
 
 def _guard_estimator(ctx: Any, robot: str, motion_world: Any) -> Any:

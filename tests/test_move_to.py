@@ -195,10 +195,10 @@ def test_a_roll_only_move_turns_at_the_peak_roll_rate() -> None:
 def test_a_roll_that_ends_short_meets_only_a_looser_roll_tolerance(
     tolerance: float | None, status: SkillStatus
 ) -> None:
-    """A half-turn roll whose joint stays 3.3 deg short of pi (the joint held, whatever
-    the set point) fails the default tolerance and meets a 5 deg ``roll_tolerance`` at
-    the end of the settling time; the tip stays on its goal (a roll about the tool's own
-    axis)."""
+    """A half-turn roll whose joint settles 3.3 deg short of pi (the perturbed runs'
+    grasper, joint friction x1.22) fails the default 3 deg and meets a 5 deg
+    ``roll_tolerance`` at the end of the settling time; the tip stays on its goal (a
+    roll about the tool's own axis)."""
     q0 = np.array([0.1, -0.1, 0.0, 0.1])
     tip = endobot.forward_kinematics(q0).position
     params: dict[str, Any] = {"robot": "arm", "target": tuple(tip), "roll": math.pi}
@@ -215,7 +215,7 @@ def test_a_roll_that_ends_short_meets_only_a_looser_roll_tolerance(
         if result.status is not SkillStatus.RUNNING:
             break
     assert result is not None and result.status is status
-    # either way only once the settling time is over: the move waits for the default first
+    # either way only once the settling time is over: the move waits for 3 deg first
     assert t >= skill._traj.duration + MoveTo.SETTLE_S + MoveTo.ROLL_SETTLE_S
     if status is SkillStatus.FAILURE:
         assert "roll 3.3 deg off" in result.message
@@ -223,8 +223,7 @@ def test_a_roll_that_ends_short_meets_only_a_looser_roll_tolerance(
 
 def test_a_roll_tolerance_does_not_end_a_roll_that_still_closes_in() -> None:
     """With ``roll_tolerance``, a roll 4 deg off at the trajectory's end is not yet done:
-    the move still waits for the default tolerance, and succeeds when the joint gets
-    there."""
+    the move still waits for the default 3 deg, and succeeds when the joint gets there."""
     q0 = np.array([0.1, -0.1, 0.0, 0.1])
     tip = endobot.forward_kinematics(q0).position
     skill = MoveTo(
@@ -233,47 +232,7 @@ def test_a_roll_tolerance_does_not_end_a_roll_that_still_closes_in() -> None:
     ctx = SkillContext(step="s", roles={"arm": ROBOT}, dt=1e-3, start=_obs(0.0, q0), params={})
     skill.start(ctx)
     behind = q0 + np.array([0.0, 0.0, math.pi - math.radians(4.0), 0.0])
-    near = q0 + np.array([0.0, 0.0, math.pi - math.radians(0.3), 0.0])
-    there = q0 + np.array([0.0, 0.0, math.pi - math.radians(0.1), 0.0])
+    there = q0 + np.array([0.0, 0.0, math.pi - math.radians(2.0), 0.0])
     done = skill._traj.duration
-    assert MoveTo.ROLL_TOLERANCE == pytest.approx(math.radians(0.2))
     assert skill.step(ctx, _obs(done + 0.5, behind)).status is SkillStatus.RUNNING
-    assert skill.step(ctx, _obs(done + 0.55, near)).status is SkillStatus.RUNNING
     assert skill.step(ctx, _obs(done + 0.6, there)).status is SkillStatus.SUCCESS
-
-
-def test_a_roll_held_short_leads_its_set_point_past_the_goal_up_to_a_cap() -> None:
-    """Integral action after the trajectory: while the joint is held short of the goal,
-    the commanded roll leads the goal by the integral of ROLL_INTEGRAL_GAIN times the
-    error (summed by hand here), never more than ROLL_INTEGRAL_LIMIT; within the
-    tolerance the lead stops growing; a new move starts with no lead."""
-    q0 = np.array([0.1, -0.1, 0.0, 0.1])
-    tip = endobot.forward_kinematics(q0).position
-    goal = math.pi / 2
-    skill = MoveTo({"robot": "arm", "target": tuple(tip), "roll": goal})
-    dt = 1e-3
-    ctx = SkillContext(step="s", roles={"arm": ROBOT}, dt=dt, start=_obs(0.0, q0), params={})
-    skill.start(ctx)
-    done = skill._traj.duration
-    short = math.radians(3.0)
-    held = q0 + np.array([0.0, 0.0, goal - short, 0.0])
-    # during the trajectory the set point is the trajectory's own
-    mid = skill.step(ctx, _obs(done / 2, held)).command.robots[ROBOT].q
-    assert mid[2] == pytest.approx(skill._traj(done / 2).q[2], abs=1e-12)
-    leads = []
-    for k in range(1, 301):
-        cmd = skill.step(ctx, _obs(done + k * dt, held)).command.robots[ROBOT].q
-        leads.append(cmd[2] - goal)
-    expected = [MoveTo.ROLL_INTEGRAL_GAIN * short * dt * k for k in range(1, 301)]
-    assert leads == pytest.approx(expected, rel=1e-9)
-    # held long enough, the lead saturates at the cap
-    for k in range(301, 3000):
-        cmd = skill.step(ctx, _obs(done + k * dt, held)).command.robots[ROBOT].q
-    assert cmd[2] - goal == pytest.approx(MoveTo.ROLL_INTEGRAL_LIMIT, abs=1e-12)
-    # within the tolerance the lead holds still (the joint has arrived: success)
-    inside = q0 + np.array([0.0, 0.0, goal - math.radians(0.1), 0.0])
-    res = skill.step(ctx, _obs(done + 0.5, inside))
-    assert res.status is SkillStatus.SUCCESS
-    assert res.command.robots[ROBOT].q[2] - goal == pytest.approx(MoveTo.ROLL_INTEGRAL_LIMIT)
-    skill.start(ctx)
-    assert skill._roll_lead == 0.0
