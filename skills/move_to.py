@@ -70,12 +70,6 @@ class MoveToParams(SkillParams):
     (measured as for ``taut_within``) before the guard may be met. Met earlier, the move
     stops there and fails: the strand was already held by something else (with
     ``taut_within``, a window on where the strand goes taut). ``None``: from the start."""
-    expect_tension: Force | None = Field(default=None, gt=0.0)
-    """A check, not a guard [N]: the move runs to its target, and fails there unless the
-    suture tension estimated along the direction of motion (as for ``until_tension``,
-    tared on the step's first tick) reached this value at some tick of the move. For a
-    motion that draws a strand through a loop: with the loop held, the strand goes taut on
-    the way; with the loop gone, nothing resists it. ``None``: no check."""
 
 
 class MoveTo(Skill):
@@ -114,15 +108,11 @@ class MoveTo(Skill):
         self._est: Any = None
         self._tip0: Any = None
         self._unit: Any = None
-        self._check: Any = None
-        self._peak = 0.0
 
     @classmethod
     def check(cls, params: SkillParams, scene: Any) -> list[Problem]:
         """``taut_within`` and ``taut_after`` need the guard (``until_tension``) they
-        bound, ``taut_after`` must lie below ``taut_within``, and ``expect_tension`` (a
-        check at the move's end) does not go with a guard (which ends the move on the
-        tension)."""
+        bound, and ``taut_after`` must lie below ``taut_within``."""
         from suture_engine.validation.problem import Problem
 
         assert isinstance(params, MoveToParams)
@@ -137,15 +127,6 @@ class MoveTo(Skill):
                         path=name,
                     )
                 )
-        if params.expect_tension is not None and params.until_tension is not None:
-            problems.append(
-                Problem(
-                    "expect-with-guard",
-                    "expect_tension checks the tension at the end of a move that runs to its "
-                    "target; until_tension ends the move on the tension: give one of them",
-                    path="expect_tension",
-                )
-            )
         within, after = params.taut_within, params.taut_after
         if within is not None and after is not None and not after < within:
             problems.append(
@@ -225,11 +206,6 @@ class MoveTo(Skill):
             if p.taut_within is not None or p.taut_after is not None:
                 self._tip0 = tip0
                 self._unit = motion / distance
-        self._check = None
-        self._peak = 0.0
-        if p.expect_tension is not None and distance > 0.0:
-            motion = self._goal - tool_tip_world(q0, self._base)
-            self._check = _guard_estimator(ctx, self._robot, motion)
 
     def step(self, ctx: Any, obs: Any) -> Any:
         """Track the trajectory; report success at the goal, failure if it is not reached.
@@ -276,9 +252,6 @@ class MoveTo(Skill):
                         f"tension {p.until_tension:.2f} N not reached within "
                         f"{p.taut_within * 1e3:.1f} mm of travel",
                     )
-        if self._check is not None:
-            ro = obs.robots[self._robot]
-            self._peak = max(self._peak, self._check.update(ro.base_wrench, ro.q).tension)
         if not sample.done:
             return StepResult(command)
         tip = tool_tip_world(obs.robots[self._robot].q, self._base)
@@ -293,12 +266,12 @@ class MoveTo(Skill):
             return StepResult(command)
         roll_error = 0.0 if p.roll is None else abs(float(obs.robots[self._robot].q[2]) - p.roll)
         if error <= p.tolerance and roll_error <= self.ROLL_TOLERANCE:
-            return self._arrived(command)
+            return StepResult(command, SkillStatus.SUCCESS)
         settle = self.SETTLE_S + (0.0 if p.roll is None else self.ROLL_SETTLE_S)
         if t >= self._traj.duration + settle:
             late = p.roll_tolerance
             if late is not None and error <= p.tolerance and roll_error <= late:
-                return self._arrived(command)
+                return StepResult(command, SkillStatus.SUCCESS)
             return StepResult(
                 command,
                 SkillStatus.FAILURE,
@@ -307,21 +280,6 @@ class MoveTo(Skill):
                 f"{math.degrees(roll_error):.1f} deg off",
             )
         return StepResult(command)
-
-    def _arrived(self, command: Any) -> Any:
-        """At the target: success, unless ``expect_tension`` was never reached."""
-        _, _, _, SkillStatus, StepResult, _ = _step_imports()
-        p = self.params
-        assert isinstance(p, MoveToParams)
-        if self._check is not None and p.expect_tension is not None:
-            if self._peak < p.expect_tension:
-                return StepResult(
-                    command,
-                    SkillStatus.FAILURE,
-                    f"tension peaked at {self._peak:.2f} N along the move, below the "
-                    f"{p.expect_tension:.2f} N expected",
-                )
-        return StepResult(command, SkillStatus.SUCCESS)
 
 
 def _guard_estimator(ctx: Any, robot: str, motion_world: Any) -> Any:

@@ -151,32 +151,6 @@ def test_a_guard_met_past_its_travel_floor_succeeds_as_without_it() -> None:
     assert 0.003 < rise < 0.009
 
 
-@pytest.mark.parametrize(
-    ("pull_N", "outcome"), [(1.0, "succeeded"), (0.3, "aborted"), (0.0, "aborted")]
-)
-def test_an_expected_tension_is_checked_at_the_target_without_stopping_the_move(
-    pull_N: float, outcome: str
-) -> None:
-    """expect_tension 0.5 N: a pull on the tip for 0.5 s from 0.8 s (~0.7 mm along) does not
-    stop the move; it runs the whole 30 mm, and ends done when the pull was 1 N, failed when
-    it was 0.3 N or none (the step's policy: then abort)."""
-    got, ended, rise = _guarded_run(pull_N, "expect.yaml")
-    assert got == outcome
-    assert rise == pytest.approx(0.03, abs=0.002)  # to the target either way
-    assert ended >= 1.875 * 3.0  # at the planned quintic's end (5.625 s), not before
-
-
-def test_an_expected_tension_does_not_go_with_a_guard() -> None:
-    params = MoveTo.Params.model_validate(
-        {"robot": "arm", "target": (0.0, 0.0, 0.1), "expect_tension": 0.3}
-    )
-    assert MoveTo.check(params, None) == []
-    both = params.model_copy(update={"until_tension": 0.5})
-    assert [(p.code, p.path) for p in MoveTo.check(both, None)] == [
-        ("expect-with-guard", "expect_tension")
-    ]
-
-
 def test_taut_within_without_a_guard_is_a_validation_problem() -> None:
     params = MoveTo.Params.model_validate(
         {"robot": "arm", "target": (0.0, 0.0, 0.1), "taut_within": 0.003}
