@@ -569,6 +569,57 @@ def test_two_turns_round_the_arm_are_caught_in_the_slide_off_and_the_run_fails(
     assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
 
 
+PERTURBED_RUNS = {
+    # benchmarks/knot_success.py --single --seeds 20, algorithm 3: run -> (seed, options)
+    12: (
+        64663193,
+        {
+            "base_error": {
+                "endobot_1": (
+                    -0.0016334009149484147,
+                    -0.00021342158745423488,
+                    -0.0022955871942597086,
+                ),
+                "endobot_2": (
+                    -0.00037654214444794064,
+                    0.0011304234045460709,
+                    -0.0013272083500834842,
+                ),
+            },
+            "friction_scale": 1.031461775152532,
+            "suture_stiffness_scale": 1.1336340109914094,
+        },
+    ),
+}
+
+
+@pytest.mark.slow
+def test_a_perturbed_trefoil_that_draws_taut_early_passes_the_floor(tmp_path: Path) -> None:
+    """Perturbed run 12 (base errors 2.8 and 1.8 mm, joint friction x1.03): its slide-off
+    went taut after 29.7 mm, below the former 35 mm floor, which stopped a throw that ties.
+    With the floor between the throws that must not pass (by 18.9 mm) and it, the run ends
+    ``succeeded`` with a trefoil that binds the stitch, the true tension under the limit."""
+    import json
+
+    from suture_engine.runtime.run import run_procedure
+
+    seed, options = PERTURBED_RUNS[12]
+    out = tmp_path / "run"
+    run_procedure(
+        PROC,
+        backend="pybullet-surgical-stitched",
+        seed=seed,
+        sets=["stitch=false"],
+        out=out,
+        max_time_s=100,
+        backend_options=options,
+    )
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["outcome"] == "succeeded"
+    assert summary["knot"]["type"] == "trefoil" and summary["knot"]["through_tissue"] is True
+    assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
+
+
 @pytest.mark.slow
 def test_the_square_knots_mirrored_loop_left_on_the_arm_is_caught(tmp_path: Path) -> None:
     """Algorithm 3's square knot, seed 1: the first throw ties its trefoil, the mirrored
