@@ -569,11 +569,25 @@ def test_two_turns_round_the_arm_are_caught_in_the_slide_off_and_the_run_fails(
     assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
 
 
-PERTURBED_RUNS = {
-    # benchmarks/knot_success.py --single --seeds 20, algorithm 3: run -> (seed, options)
-    12: (
-        64663193,
-        {
+@pytest.mark.slow
+def test_a_perturbed_trefoil_that_draws_taut_early_passes_the_floor(tmp_path: Path) -> None:
+    """Perturbed run 12 (base errors 2.8 and 1.8 mm, joint friction x1.03): its slide-off
+    went taut after 29.7 mm, below the former 35 mm floor, which stopped a throw that ties.
+    With the floor between the throws that must not pass (by 18.9 mm) and it, the run ends
+    ``succeeded`` with a trefoil that binds the stitch, the true tension under the limit."""
+    import json
+
+    from suture_engine.runtime.run import run_procedure
+
+    out = tmp_path / "run"
+    run_procedure(  # benchmarks/knot_success.py --single --seeds 20, algorithm 3, run 12
+        PROC,
+        backend="pybullet-surgical-stitched",
+        seed=64663193,
+        sets=["stitch=false"],
+        out=out,
+        max_time_s=100,
+        backend_options={
             "base_error": {
                 "endobot_1": (
                     -0.0016334009149484147,
@@ -589,30 +603,6 @@ PERTURBED_RUNS = {
             "friction_scale": 1.031461775152532,
             "suture_stiffness_scale": 1.1336340109914094,
         },
-    ),
-}
-
-
-@pytest.mark.slow
-def test_a_perturbed_trefoil_that_draws_taut_early_passes_the_floor(tmp_path: Path) -> None:
-    """Perturbed run 12 (base errors 2.8 and 1.8 mm, joint friction x1.03): its slide-off
-    went taut after 29.7 mm, below the former 35 mm floor, which stopped a throw that ties.
-    With the floor between the throws that must not pass (by 18.9 mm) and it, the run ends
-    ``succeeded`` with a trefoil that binds the stitch, the true tension under the limit."""
-    import json
-
-    from suture_engine.runtime.run import run_procedure
-
-    seed, options = PERTURBED_RUNS[12]
-    out = tmp_path / "run"
-    run_procedure(
-        PROC,
-        backend="pybullet-surgical-stitched",
-        seed=seed,
-        sets=["stitch=false"],
-        out=out,
-        max_time_s=100,
-        backend_options=options,
     )
     summary = json.loads((out / "summary.json").read_text())
     assert summary["outcome"] == "succeeded"
