@@ -35,10 +35,13 @@ Usage::
     python benchmarks/knot_success.py [--seeds 20] [--algorithms 1,2,3] [--max-time 300]
         [--workers 2] [--out runs/knot-success] [--backend pybullet-surgical]
         [--base-seed 0] [--no-perturb] [--bending-stiffness EI] [--single] [--resume]
-        [--only base,friction,stiffness]
+        [--only base,friction,stiffness] [--base-part all|common|relative]
 
 ``--only`` applies only the named perturbations (an ablation): run ``i`` keeps the
-values run ``i`` draws, the others stay nominal.
+values run ``i`` draws, the others stay nominal. ``--base-part`` splits each run's base
+error into the part both robots share (their mean: the tools' relative poses stay exact,
+only their poses to the tissue and thread are off) and the rest (the relative error that
+tool-to-tool moves suffer), and applies one of them.
 
 The table is rewritten after every run, so a stopped sweep keeps its rows; ``--resume``
 keeps them and runs only the runs still missing (same algorithm, run, seed and
@@ -58,7 +61,7 @@ import time
 from collections import Counter
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from multiprocessing import get_context
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -114,6 +117,33 @@ def keep_only(perturbation: Perturbation, kinds: Sequence[str]) -> Perturbation:
     return Perturbation(
         **{f: getattr(perturbation if f in keep else nominal, f) for f in KINDS.values()}
     )
+
+
+BASE_PARTS = ("all", "common", "relative")
+"""``--base-part`` choices: the whole base error, its common part (every robot displaced by
+the robots' mean error: the tools keep their true relative poses), or its relative part
+(each robot's error minus the mean: the same relative error, none shared)."""
+
+
+def split_base(perturbation: Perturbation, part: str) -> Perturbation:
+    """The perturbation with only ``part`` (one of :data:`BASE_PARTS`) of its base error.
+
+    The two parts add up to the whole: ``common + relative == all`` robot by robot.
+
+    Raises:
+        ValueError: an unknown part.
+    """
+    if part not in BASE_PARTS:
+        raise ValueError(f"base part must be one of {BASE_PARTS}, got {part!r}")
+    errors = perturbation.base_error
+    if part == "all" or not errors:
+        return perturbation
+    mean = np.mean(np.array([errors[r] for r in sorted(errors)], dtype=float), axis=0)
+    split = {
+        r: tuple(float(v) for v in (mean if part == "common" else np.asarray(e, float) - mean))
+        for r, e in errors.items()
+    }
+    return replace(perturbation, base_error=split)  # type: ignore[arg-type]
 
 
 def draw_perturbation(rng: np.random.Generator, robots: Sequence[str] = ROBOTS) -> Perturbation:
@@ -222,8 +252,10 @@ def make_jobs(
     perturb: bool,
     accepted: set[str],
     only: Sequence[str] | None = None,
+    base_part: str = "all",
 ) -> list[Job]:
-    """Every run's seed, perturbation and backend options (module doc)."""
+    """Every run's seed, perturbation and backend options (module doc); ``base_part``
+    keeps that part of each base error (:func:`split_base`)."""
     jobs = []
     for alg in algorithms:
         for i in range(seeds):
@@ -233,6 +265,8 @@ def make_jobs(
             pert = draw_perturbation(rng) if perturb else Perturbation()
             if perturb and only is not None:
                 pert = keep_only(pert, only)
+            if perturb:
+                pert = split_base(pert, base_part)
             opts = backend_options(pert, accepted)[0] if perturb else {}
             out_dir = str(out / "runs" / f"alg{alg}-{i:03d}")
             jobs.append(Job(alg, i, seed, pert, opts, backend, out_dir, max_time_s))
@@ -433,6 +467,13 @@ def main(argv: Sequence[str]) -> int:
         "(each run keeps its own draw of them; the others stay nominal)",
     )
     ap.add_argument(
+        "--base-part",
+        choices=BASE_PARTS,
+        default="all",
+        help="of each base error apply all, its common part (the robots' mean: relative "
+        "poses exact) or its relative part (each minus the mean)",
+    )
+    ap.add_argument(
         "--bending-stiffness", type=float, default=None, help="nominal thread EI [N*m^2]"
     )
     ap.add_argument(
@@ -460,9 +501,12 @@ def main(argv: Sequence[str]) -> int:
                      f"got {args.only!r}")  # fmt: skip
         applied = tuple(a for a in applied if a in {KINDS[k] for k in only})
         missing = tuple(m for m in missing if m in {KINDS[k] for k in only})
+    if args.base_part != "all" and not perturb:
+        ap.error("--base-part splits the perturbations' base error: not with --no-perturb")
     jobs = make_jobs(
         algorithms, args.seeds, base_seed=args.base_seed, backend=args.backend, out=args.out,
         max_time_s=args.max_time, perturb=perturb, accepted=accepted, only=only,
+        base_part=args.base_part,
     )  # fmt: skip
     jobs = [j._replace(single=args.single) for j in jobs]
     nominal_ei = args.bending_stiffness
@@ -483,6 +527,8 @@ def main(argv: Sequence[str]) -> int:
         print(f"perturbations applied: {', '.join(applied) or 'none'}")
         if only is not None:
             print(f"  (--only {','.join(only)}: the others stay nominal)")
+        if args.base_part != "all":
+            print(f"  (--base-part {args.base_part}: that part of each base error only)")
         if missing:
             print(f"NOT applied (the backend takes no option for them): {', '.join(missing)}")
         if (

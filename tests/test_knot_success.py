@@ -81,8 +81,33 @@ def test_an_ablation_keeps_each_runs_own_draw_of_the_kinds_it_names() -> None:
         assert dict(c.perturbation.base_error) == {} and c.perturbation.stiffness_scale == 1.0
 
 
+def test_the_base_errors_parts_add_up_and_keep_what_they_say() -> None:
+    common = {"base_seed": 0, "backend": "x", "out": Path("/tmp/unused"), "max_time_s": 10.0,
+              "perturb": True, "accepted": {"base_error"}, "only": ["base"]}  # fmt: skip
+    parts = {p: ks.make_jobs([2], 4, base_part=p, **common) for p in ks.BASE_PARTS}  # type: ignore[arg-type]
+    for whole, shared, rel in zip(parts["all"], parts["common"], parts["relative"], strict=True):
+        assert whole.seed == shared.seed == rel.seed
+        e = {r: np.array(v) for r, v in whole.perturbation.base_error.items()}
+        c = {r: np.array(v) for r, v in shared.perturbation.base_error.items()}
+        d = {r: np.array(v) for r, v in rel.perturbation.base_error.items()}
+        # the common part: both robots displaced alike, so their relative pose is exact
+        np.testing.assert_array_equal(c["endobot_1"], c["endobot_2"])
+        # the relative part: the same difference between the robots, nothing shared
+        np.testing.assert_allclose(
+            d["endobot_1"] - d["endobot_2"], e["endobot_1"] - e["endobot_2"], atol=1e-18
+        )
+        np.testing.assert_allclose(d["endobot_1"] + d["endobot_2"], 0.0, atol=1e-18)
+        for r in e:
+            np.testing.assert_allclose(c[r] + d[r], e[r], atol=1e-18)
+        # the backend receives the part, not the whole
+        assert shared.options["base_error"]["endobot_1"] == list(c["endobot_1"])
+    with pytest.raises(ValueError, match="base part"):
+        ks.split_base(ks.Perturbation(), "half")
+
+
 def test_command_line_refuses_an_unknown_ablation() -> None:
-    for bad in (["--only", "base,gravity"], ["--only", ","], ["--only", "base", "--no-perturb"]):
+    for bad in (["--only", "base,gravity"], ["--only", ","], ["--only", "base", "--no-perturb"],
+                ["--base-part", "common", "--no-perturb"], ["--base-part", "half"]):  # fmt: skip
         with pytest.raises(SystemExit) as err:
             ks.main(["--algorithms", "2", "--seeds", "1", *bad])
         assert err.value.code == 2
