@@ -36,12 +36,15 @@ Usage::
         [--workers 2] [--out runs/knot-success] [--backend pybullet-surgical]
         [--base-seed 0] [--no-perturb] [--bending-stiffness EI] [--single] [--resume]
         [--only base,friction,stiffness] [--base-part all|common|relative]
+        [--set NAME=VALUE ...]
 
 ``--only`` applies only the named perturbations (an ablation): run ``i`` keeps the
 values run ``i`` draws, the others stay nominal. ``--base-part`` splits each run's base
 error into the part both robots share (their mean: the tools' relative poses stay exact,
 only their poses to the tissue and thread are off) and the rest (the relative error that
-tool-to-tool moves suffer), and applies one of them.
+tool-to-tool moves suffer), and applies one of them. ``--set`` passes a procedure
+parameter to every run (``--set register=true``: the throw first registers both robots'
+bases on the scene's posts).
 
 The table is rewritten after every run, so a stopped sweep keeps its rows; ``--resume``
 keeps them and runs only the runs still missing (same algorithm, run, seed and
@@ -221,6 +224,7 @@ class Job(NamedTuple):
     out_dir: str
     max_time_s: float
     single: bool = False
+    sets: tuple[str, ...] = ()
 
 
 class Row(NamedTuple):
@@ -304,10 +308,12 @@ def is_success(outcome: str, knot: str, bound: bool = True, *, single: bool = Fa
 def job_sets(job: Job) -> list[str]:
     """The run's ``--set`` values: a single throw or a square knot on the stitched start
     (a ``*-stitched`` backend) skips the stitch, elsewhere makes it; a square knot picks
-    its algorithm."""
+    its algorithm; then the ``--set`` values given on the command line."""
     stitched = job.single or job.backend.endswith("-stitched")
-    return ([] if job.single else [f"algorithm={job.algorithm}"]) + (
-        ["stitch=false"] if stitched else ["stitch=true"]
+    return (
+        ([] if job.single else [f"algorithm={job.algorithm}"])
+        + (["stitch=false"] if stitched else ["stitch=true"])
+        + list(job.sets)
     )
 
 
@@ -467,6 +473,14 @@ def main(argv: Sequence[str]) -> int:
         "(each run keeps its own draw of them; the others stay nominal)",
     )
     ap.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a procedure parameter for every run (repeatable), e.g. register=true; "
+        "give --resume only with the same values",
+    )
+    ap.add_argument(
         "--base-part",
         choices=BASE_PARTS,
         default="all",
@@ -508,7 +522,9 @@ def main(argv: Sequence[str]) -> int:
         max_time_s=args.max_time, perturb=perturb, accepted=accepted, only=only,
         base_part=args.base_part,
     )  # fmt: skip
-    jobs = [j._replace(single=args.single) for j in jobs]
+    if any("=" not in v for v in args.set):
+        ap.error(f"--set: NAME=VALUE, got {args.set!r}")
+    jobs = [j._replace(single=args.single, sets=tuple(args.set)) for j in jobs]
     nominal_ei = args.bending_stiffness
     if nominal_ei is not None:
         if "suture_bending_stiffness" not in accepted:
@@ -519,6 +535,8 @@ def main(argv: Sequence[str]) -> int:
             j._replace(options={**j.options, "suture_bending_stiffness": nominal_ei}) for j in jobs
         ]
     what = "knot-algorithm-N.yaml (one throw)" if args.single else "square-knot.yaml"
+    if args.set:
+        what += " --set " + " --set ".join(args.set)
     print(
         f"{what} on {args.backend}: {args.seeds} run(s) per algorithm "
         f"{algorithms}, max {args.max_time:g} s simulated each, {args.workers} worker(s)"

@@ -105,9 +105,15 @@ def test_the_base_errors_parts_add_up_and_keep_what_they_say() -> None:
         ks.split_base(ks.Perturbation(), "half")
 
 
+def test_set_values_follow_the_runs_own() -> None:
+    job = _jobs([2], set())[0]._replace(single=True, sets=("register=true",))
+    assert ks.job_sets(job) == ["stitch=false", "register=true"]
+
+
 def test_command_line_refuses_an_unknown_ablation() -> None:
     for bad in (["--only", "base,gravity"], ["--only", ","], ["--only", "base", "--no-perturb"],
-                ["--base-part", "common", "--no-perturb"], ["--base-part", "half"]):  # fmt: skip
+                ["--base-part", "common", "--no-perturb"], ["--base-part", "half"],
+                ["--set", "register"]):  # fmt: skip
         with pytest.raises(SystemExit) as err:
             ks.main(["--algorithms", "2", "--seeds", "1", *bad])
         assert err.value.code == 2
