@@ -42,6 +42,7 @@ BUILTIN_SKILLS: dict[str, str] = {
     "wrap": "skills.wrap:Wrap",
     "hold": "skills.hold:Hold",
     "move-to": "skills.move_to:MoveTo",
+    "register": "skills.register:Register",
     "wait-for-operator": "skills.wait_for_operator:WaitForOperator",
 }
 """Name -> ``module:Class`` of the skills shipped with the engine."""

@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import copy
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -139,6 +139,7 @@ class Scene:
         tissue: the tissue pad, or None.
         tools: tool tips by name.
         time: simulated time since the scene was built [s].
+        posts: the scene's calibration posts: name -> body id.
     """
 
     client: int
@@ -151,6 +152,7 @@ class Scene:
     robots: dict[str, Any] = field(default_factory=dict)
     hold: dict[str, tuple[float, float, float, float]] = field(default_factory=dict)
     torques: dict[str, Any] = field(default_factory=dict)
+    posts: dict[str, int] = field(default_factory=dict)
 
     def step(self) -> None:
         """Advance the world by one physics step (1 / ``PHYSICS_RATE`` [s]).
@@ -848,7 +850,33 @@ def _build_model(
             for link in links:
                 p.setCollisionFilterPair(part, robot.body_id, -1, link, 0, physicsClientId=client)
         scene.tools[name] = tool
+    scene.posts = _make_posts(client, model, [*tissue.bodies, *suture.bodies, suture.needle_body])
     return scene
+
+
+def _make_posts(client: int, model: Any, ignore: Sequence[int]) -> dict[str, int]:
+    """The scene's calibration posts: fixed capsules along z (``Scene.posts``), which
+    the robots and their tools touch and the thread, needle and tissue pass through."""
+    import pybullet as p
+
+    out: dict[str, int] = {}
+    for name, post in sorted((getattr(model, "posts", None) or {}).items()):
+        col = p.createCollisionShape(
+            p.GEOM_CAPSULE, radius=post.radius, height=post.height, physicsClientId=client
+        )
+        vis = p.createVisualShape(
+            p.GEOM_CAPSULE,
+            radius=post.radius,
+            length=post.height,
+            rgbaColor=[0.3, 0.5, 0.8, 1.0],
+            physicsClientId=client,
+        )
+        centre = np.asarray(post.position, float) + np.array([0.0, 0.0, post.height / 2])
+        body = p.createMultiBody(0.0, col, vis, centre.tolist(), physicsClientId=client)
+        for other in ignore:
+            p.setCollisionFilterPair(body, other, -1, -1, 0, physicsClientId=client)
+        out[name] = body
+    return out
 
 
 class PullResult(NamedTuple):

@@ -35,6 +35,7 @@ __all__ = [
     "JointLimits",
     "Physics",
     "Pose",
+    "Post",
     "RobotSpec",
     "Scene",
     "Suture",
@@ -237,6 +238,22 @@ class Suture(_Model):
         return KNOT_PULL_STRENGTH_KG[self.usp] * GRAVITY
 
 
+class Post(_Model):
+    """A rigid calibration post standing on the table, along the world's z.
+
+    Its surface is a capsule: the points within ``radius`` of the segment from
+    ``position`` to ``height`` above it. The robots touch it to register their bases
+    (skill ``register``): the thesis calibrated them with a 3D digitizer (Fig. 4.31).
+    """
+
+    position: Position
+    """Foot of the post's axis, world frame [m]."""
+    height: Length = Field(default=0.04, gt=0.0, le=0.2)
+    """Length of the axis [m]; the top is ``radius`` higher."""
+    radius: Length = Field(default=0.002, gt=0.0, le=0.02)
+    """Radius [m]."""
+
+
 class ForcePlant(_Model):
     """The mass-damper-spring seen by the force controller (7.23-7.25)."""
 
@@ -278,6 +295,8 @@ class Scene(_Model):
     """The suture."""
     physics: Physics = Physics()
     """Physics and sensor settings."""
+    posts: dict[str, Post] = Field(default_factory=dict)
+    """Rigid calibration posts by name, at known positions (see ``register``)."""
     safety_factor: float = Field(default=0.5, gt=0.0, le=1.0)
     """Fraction of the weaker of suture strength and pull-out allowed [-]."""
     faults: list[Fault] = Field(default_factory=list)

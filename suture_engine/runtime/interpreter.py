@@ -151,6 +151,8 @@ class Interpreter:
         self.robots = tuple(first.robots)
         self.geometry: SceneGeometry = backend.geometry()
         self._washout = {r: WashoutFilter(washout_pole, self.dt) for r in self.robots}
+        self._base_offsets: dict[str, tuple[float, float, float]] = {}
+        """Robot -> base position correction [m] measured by a ``register`` step."""
         gravity: dict[str, tuple[float, float, float]] = {}
         for name, (_pos, rot) in self._base_poses().items():
             g = np.asarray(rot).reshape(3, 3).T @ np.array([0.0, 0.0, -GRAVITY])
@@ -191,12 +193,17 @@ class Interpreter:
 
     # ----------------------------------------------------------------- skills
     def _base_poses(self) -> dict[str, Any]:
+        """The scene's declared base poses, plus what a ``register`` step has measured."""
         out: dict[str, Any] = {}
         robots = getattr(self.scene, "robots", None) or {}
         for name, spec in robots.items():
             base = spec.base
             rot = rpy_matrix(base.rpy)
-            out[name] = (tuple(float(v) for v in base.position), tuple(float(v) for v in rot))
+            position = tuple(float(v) for v in base.position)
+            offset = self._base_offsets.get(name)
+            if offset is not None:
+                position = tuple(a + b for a, b in zip(position, offset, strict=True))
+            out[name] = (position, tuple(float(v) for v in rot))
         return out
 
     def _start_skill(self, spec: StepSpec, skill: Any) -> None:
@@ -419,8 +426,18 @@ class Interpreter:
             self._record_transitions(time_ns, a.unpredictable(reason))
             return result.command
         if result.status is SkillStatus.SUCCESS:
+            self._apply_registration(a.active_skill)
             self._record_transitions(time_ns, a.planned())
         return result.command
+
+    def _apply_registration(self, skill: Any) -> None:
+        """Add a finishing skill's base corrections (``register``) to the declared bases."""
+        corrections = getattr(skill, "base_corrections", None)
+        for robot, offset in (corrections or {}).items():
+            old = self._base_offsets.get(robot, (0.0, 0.0, 0.0))
+            self._base_offsets[robot] = tuple(  # type: ignore[assignment]
+                float(a) + float(b) for a, b in zip(old, offset, strict=True)
+            )
 
     def _qp_tick(self, time_ns: int, skill: Any, spec: StepSpec) -> None:
         """Trace the skill's QP status and count consecutive failed solves (for the monitor)."""
