@@ -20,7 +20,7 @@ from suture_engine.runtime.testing import IdealBackend, ScriptedSkill
 from suture_engine.runtime.trajectory import rpy_matrix, tool_tip_world, world_to_base
 
 ROOT = Path(__file__).resolve().parent.parent
-PROC = load_procedure(ROOT / "procedures" / "knot-algorithm-2.yaml")
+PROC = load_procedure(ROOT / "procedures" / "register-bases.yaml")
 SCENE = PROC.scene
 BASES = {n: (tuple(s.base.position), rpy_matrix(s.base.rpy)) for n, s in SCENE.robots.items()}
 
@@ -41,11 +41,11 @@ def _ctx(robot: str, q: Any) -> Any:
 
 STARTS = {
     # the stitched start: the stitcher's tip 40 mm over the exit, the grasper at its home
-    "register-stitcher": (
+    "stitcher": (
         "endobot_1",
         inverse_kinematics(world_to_base((0.0, 0.004, 0.04), BASES["endobot_1"]), 0.0),
     ),
-    "register-grasper": ("endobot_2", np.array([0.0, 0.0, 0.0, 0.08])),
+    "grasper": ("endobot_2", np.array([0.0, 0.0, 0.0, 0.08])),
 }
 
 
@@ -111,6 +111,25 @@ def test_a_touch_of_a_post_the_scene_lacks_is_a_located_problem() -> None:
     assert [pr.code for pr in problems] == ["unknown-post"]
     assert problems[0].path == "touches[0].post"
     assert "grasper_near" in problems[0].message
+
+
+def test_a_state_turned_off_is_not_checked_against_the_scene(tmp_path: Path) -> None:
+    from suture_engine.validation.checks import validate_file
+
+    procs = tmp_path / "procedures"
+    (procs / "scenes").mkdir(parents=True)
+    for name in ("knot-algorithm-2.yaml", "register-bases.yaml", "stitch.yaml"):
+        text = (ROOT / "procedures" / name).read_text()
+        # registration on a scene without posts: the caller's, inherited
+        text = text.replace("'bench-posts' if register else 'bench'", "'bench'")
+        text = text.replace("scene: scenes/bench-posts.yaml\n", "")
+        (procs / name).write_text(text)
+    bench = (ROOT / "procedures" / "scenes" / "bench.yaml").read_text()
+    (procs / "scenes" / "bench.yaml").write_text(bench)
+    path = procs / "knot-algorithm-2.yaml"
+    assert validate_file(path) == []  # `when:` turns the registration off
+    codes = [p.code for p in validate_file(path, params={"register": True})]
+    assert codes and set(codes) == {"unknown-post"}
 
 
 class _Registers(ScriptedSkill):

@@ -33,22 +33,26 @@ from suture_engine.runtime.testing import DEFAULT_Q
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def _states(proc: Any) -> list[tuple[Any, Any]]:
+def _states(proc: Any, on: bool = True) -> list[tuple[Any, Any, bool]]:
+    """Every skill state with whether it can run (``when:`` may turn it, or the
+    sub-procedure it is in, off)."""
     out = []
     for state in proc.states.values():
         if state.skill is not None and state.params is not None:
-            out.append((proc, state))
+            out.append((proc, state, on and state.enabled))
         if state.use is not None:
-            out.extend(_states(state.use))
+            out.extend(_states(state.use, on and state.enabled))
     return out
 
 
 def _samples() -> dict[str, tuple[Any, Any]]:
     found: dict[str, tuple[Any, Any]] = {}
+    off: dict[str, tuple[Any, Any]] = {}
     for path in sorted((ROOT / "procedures").glob("*.yaml")):
-        for proc, state in _states(load_procedure(path)):
-            found.setdefault(state.skill, (proc, state.params))
-    return found
+        for proc, state, can_run in _states(load_procedure(path)):
+            # a state `when:` turns off may refer to what only another scene declares
+            (found if can_run else off).setdefault(state.skill, (proc, state.params))
+    return {**off, **found}
 
 
 SAMPLES = _samples()

@@ -89,22 +89,24 @@ def check_procedure(proc: Procedure) -> list[Problem]:
     """The semantic checks of a loaded procedure and of every sub-procedure it uses."""
     problems: list[Problem] = []
     seen: set[int] = set()
-    for p in _walk(proc):
+    for p, on in _walk(proc):
         if id(p) in seen:
             continue
         seen.add(id(p))
         problems.extend(_graph(p))
         problems.extend(_roles(p))
         for state in p.states.values():
-            problems.extend(_state_checks(p, state))
+            problems.extend(_state_checks(p, state, on))
     return problems
 
 
-def _walk(proc: Procedure) -> Iterator[Procedure]:
-    yield proc
+def _walk(proc: Procedure, on: bool = True) -> Iterator[tuple[Procedure, bool]]:
+    """The procedure and its sub-procedures, each with whether it can run with these
+    parameters (a sub-procedure that `when:` turns off cannot)."""
+    yield proc, on
     for state in proc.states.values():
         if state.use is not None:
-            yield from _walk(state.use)
+            yield from _walk(state.use, on and state.enabled)
 
 
 def _source(proc: Procedure) -> SourceMap:
@@ -314,7 +316,7 @@ def _markers(annotation: Any) -> tuple[set[str], bool]:
     return kinds, position
 
 
-def _state_checks(proc: Procedure, state: LoadedState) -> list[Problem]:
+def _state_checks(proc: Procedure, state: LoadedState, on: bool = True) -> list[Problem]:
     from skills.registry import get_skill
 
     src = _source(proc)
@@ -394,8 +396,13 @@ def _state_checks(proc: Procedure, state: LoadedState) -> list[Problem]:
     if scene is not None:
         out.extend(_tool_check(proc, params, cls, src, where))
         out.extend(_reach_checks(proc, state, params, src, where))
+    found: list[Problem] = []
+    # a state that `when:` turns off for these parameters (or in a sub-procedure it turns
+    # off) is not checked against the scene, which the same parameters may choose:
+    # validate with --set to check it on
     try:
-        found = cls.check(params, scene)
+        if on and state.enabled:
+            found = cls.check(params, scene)
     except Exception as exc:  # a third-party check that breaks must not crash validation
         found = [Problem("skill-check", f"skill {cls.name!r} check failed: {exc}")]
     for p in found:
