@@ -167,3 +167,24 @@ def test_a_registration_moves_the_bases_every_later_step_sees() -> None:
     np.testing.assert_allclose(moved, (1e-3, -2e-3, 0.5e-3), atol=1e-15)
     assert after["endobot_2"] == before["endobot_2"]
     assert after["endobot_1"][1] == before["endobot_1"][1]  # the rotation is kept
+
+
+@pytest.mark.slow
+def test_registration_in_physics_recovers_an_injected_base_error(tmp_path: Path) -> None:
+    # ground truth (the injected error) is used to grade the estimate only
+    from suture_engine.runtime.run import run_procedure
+
+    errors = {"endobot_1": (1.0e-3, -1.2e-3, 0.8e-3), "endobot_2": (-0.5e-3, 0.6e-3, -0.9e-3)}
+    result = run_procedure(
+        ROOT / "procedures" / "register-bases.yaml",
+        backend="pybullet-surgical-stitched",
+        seed=1,
+        out=tmp_path / "run",
+        backend_options={"base_error": errors},
+    )
+    assert result.summary.outcome == "succeeded"
+    metrics = result.summary.metrics
+    for robot, error in errors.items():
+        got = [metrics[f"registration_{robot}_{axis}_mm"] * 1e-3 for axis in "xyz"]
+        np.testing.assert_allclose(got, error, atol=1.5e-4)
+        assert metrics[f"registration_{robot}_least_seen"] > 0.3
