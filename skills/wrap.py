@@ -81,25 +81,11 @@ def bent_arm(q: Any, base: Any, bend: Any) -> tuple[Any, Any]:
 
 
 def segment_gap(p1: Any, q1: Any, p2: Any, q2: Any) -> float:
-    """Smallest distance [m] between the segments p1-q1 and p2-q2 [m].
+    """Smallest distance [m] between the segments p1-q1 and p2-q2 [m]
+    (:func:`suture_engine.robot.registration.segment_closest`)."""
+    from suture_engine.robot.registration import segment_closest
 
-    The closest points p1 + s d1 and p2 + t d2 minimise |r + s d1 - t d2|^2
-    (r = p1 - p2) over s, t in [0, 1]: the unconstrained stationary point clamped
-    to the square, then each parameter re-optimised with the other fixed.
-    """
-    import numpy as np
-
-    p1, q1, p2, q2 = (np.asarray(v, dtype=float) for v in (p1, q1, p2, q2))
-    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
-    a, e, f = float(d1 @ d1), float(d2 @ d2), float(d2 @ r)
-    c, b = float(d1 @ r), float(d1 @ d2)
-    denom = a * e - b * b
-    s = min(max((b * f - c * e) / denom, 0.0), 1.0) if denom > 1e-18 * a * e else 0.0
-    t = (b * s + f) / e
-    if t < 0.0 or t > 1.0:
-        t = min(max(t, 0.0), 1.0)
-        s = min(max((b * t - c) / a, 0.0), 1.0)
-    return float(np.linalg.norm(p1 + s * d1 - p2 - t * d2))
+    return segment_closest(p1, q1, p2, q2).distance
 
 
 class WrapParams(SkillParams):
