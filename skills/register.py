@@ -122,7 +122,6 @@ class Register(Skill):
         self._directions: list[Any] = []
         self._touches: list[Any] = []
         self._result: Any = None
-        self._dt = 0.001
         assert isinstance(self.params, RegisterParams)
         self._radius = float(self.params.shaft_radius)
 
@@ -283,11 +282,10 @@ class Register(Skill):
         self._moves = moves
         self._touches = []
         self._result = None
-        self._dt = ctx.dt
         self._index = -1
-        self._next(ctx.start)
+        self._next(ctx, ctx.start)
 
-    def _next(self, obs: Any) -> None:
+    def _next(self, ctx: Any, obs: Any) -> None:
         """Start the next move from the measured joints."""
         import numpy as np
 
@@ -311,7 +309,7 @@ class Register(Skill):
 
             ro = obs.robots[self._robot]
             self._est, _ = mounted_estimator(
-                self._base[1], self._directions[k], ro.base_wrench, ro.q, self._dt, 20.0
+                self._base[1], self._directions[k], ro.base_wrench, ro.q, ctx.dt, 20.0
             )
 
     # ----------------------------------------------------------- running
@@ -343,7 +341,7 @@ class Register(Skill):
             if force >= p.contact_force:
                 self._touch(obs)
                 hold = Command({self._robot: RobotCommand.trusted_position(sample.q, None)})
-                self._next(obs)
+                self._next(ctx, obs)
                 return StepResult(hold)
             if t >= self._end:
                 k = self._moves[self._index][1]
@@ -357,7 +355,7 @@ class Register(Skill):
             return StepResult(command)
         if t < self._end:
             return StepResult(command)
-        self._next(obs)
+        self._next(ctx, obs)
         if self._index >= len(self._moves):
             self._finish()
             return StepResult(command, SkillStatus.SUCCESS)

@@ -49,13 +49,18 @@ STARTS = {
 }
 
 
-@pytest.mark.parametrize("state", sorted(STARTS))
-def test_the_bundled_plan_keeps_the_shaft_off_every_post_between_touches(state: str) -> None:
+def _planned(state: str) -> tuple[str, Any, Register, RegisterParams]:
+    """A bundled registration state's skill, planned from its start joints."""
     robot, q0 = STARTS[state]
     skill = Register(RegisterParams(**_with(state)))
     skill.start(_ctx(robot, q0))
-    p = skill.params
-    assert isinstance(p, RegisterParams)
+    assert isinstance(skill.params, RegisterParams)
+    return robot, q0, skill, skill.params
+
+
+@pytest.mark.parametrize("state", sorted(STARTS))
+def test_the_bundled_plan_keeps_the_shaft_off_every_post_between_touches(state: str) -> None:
+    robot, q0, skill, p = _planned(state)
     radius = p.shaft_radius
     q = q0
     approaches = 0
@@ -82,11 +87,7 @@ def test_the_bundled_plan_keeps_the_shaft_off_every_post_between_touches(state: 
 
 @pytest.mark.parametrize("state", sorted(STARTS))
 def test_each_approach_ends_past_the_models_contact_along_the_normal(state: str) -> None:
-    robot, q0 = STARTS[state]
-    skill = Register(RegisterParams(**_with(state)))
-    skill.start(_ctx(robot, q0))
-    p = skill.params
-    assert isinstance(p, RegisterParams)
+    robot, _q0, skill, p = _planned(state)
     starts: dict[int, Any] = {}
     for kind, k, goal, _speed in skill._moves:
         a, b = shaft_segment(BASES[robot][0], tool_tip_world(goal, BASES[robot]), 6e-3, 0.3)
