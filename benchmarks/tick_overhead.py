@@ -280,6 +280,11 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=REPEATS, help="interleaved pass pairs")
     ap.add_argument("--profile", type=Path, default=None, help="write a pyinstrument profile")
     args = ap.parse_args()
+    if args.profile is not None:
+        try:
+            import pyinstrument  # noqa: F401
+        except ImportError:
+            ap.error("--profile needs pyinstrument: pip install -e '.[bench]'")
     REPEATS = max(1, args.repeats)
     load0 = os.getloadavg()[0]
 

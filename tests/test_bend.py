@@ -54,6 +54,7 @@ states:
 def write_procedure(folder: Path, robot: str = "grasper") -> Path:
     (folder / "scenes").mkdir(parents=True, exist_ok=True)
     shutil.copy(SCENE, folder / "scenes" / SCENE.name)
+    shutil.copy(SCENE.parent / "bench.yaml", folder / "scenes" / "bench.yaml")  # it extends
     path = folder / "bend.yaml"
     path.write_text(PROCEDURE.format(robot=robot))
     return path

@@ -133,6 +133,27 @@ def test_a_state_turned_off_is_not_checked_against_the_scene(tmp_path: Path) -> 
     assert codes and set(codes) == {"unknown-post"}
 
 
+def test_the_square_knot_registers_first_on_the_square_bench_with_posts() -> None:
+    from suture_engine.language.loader import load_procedure
+    from suture_engine.runtime.plan import compile_procedure
+    from suture_engine.validation.checks import validate_file
+
+    path = ROOT / "procedures" / "square-knot.yaml"
+    off = load_procedure(path)
+    assert off.scene.posts == {} and off.scene.suture.length == pytest.approx(0.14)
+    on = load_procedure(path, params={"register": True})
+    assert sorted(on.scene.posts) == sorted(SCENE.posts)
+    assert on.scene.suture == off.scene.suture and on.scene.robots == off.scene.robots
+    plan = compile_procedure(on)
+    assert plan.initial == "register.stitcher"
+    assert plan.steps["register.stitcher"].on_done == "register.grasper"
+    assert plan.steps["register.grasper"].on_done.startswith("simple-knot.")
+    assert validate_file(path, params={"register": True}) == []
+    # algorithm 3's scene has no posts: each touch is a located problem
+    codes = {p.code for p in validate_file(path, params={"register": True, "algorithm": 3})}
+    assert codes == {"unknown-post"}
+
+
 class _Registers(ScriptedSkill):
     """Succeeds at once with a fixed correction of endobot_1's base."""
 

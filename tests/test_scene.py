@@ -7,19 +7,17 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
 from backends.pybullet.scene import SceneError, build_scene, needle_path, stitch_points
 from backends.pybullet.tools import BentTipGrasper, Grasper, Stitcher
 from suture_engine.language.scene import Scene as SceneModel
+from suture_engine.language.scene_file import load_scene, read_scene
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
 def _model(name: str) -> SceneModel:
-    return SceneModel.model_validate(
-        yaml.safe_load((ROOT / "procedures/scenes" / name).read_text())
-    )
+    return load_scene(ROOT / "procedures/scenes" / name)
 
 
 def test_model_scene_robots_at_base_poses_with_tools_on_their_tool_links() -> None:
@@ -96,7 +94,7 @@ def test_model_scene_without_stitcher_starts_stitched_through_the_tissue() -> No
 def test_model_scene_graspers_grip_the_thread_with_the_scene_grip_force() -> None:
     """A scene's graspers let the thread slide above its grip force (by default 0.9 times
     the tension limit, 6.35 N on the bench); a plain dict's hold it at any force."""
-    data = yaml.safe_load((ROOT / "procedures/scenes/bench-bent-tip.yaml").read_text())
+    data = read_scene(ROOT / "procedures/scenes/bench-bent-tip.yaml").data
     for own, expected in ((None, 0.9 * 0.75 * 0.96 * 9.80665), (2.5, 2.5)):
         if own is not None:
             data["robots"]["endobot_2"]["grip_force"] = own

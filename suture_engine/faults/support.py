@@ -101,6 +101,7 @@ class FaultNotSupported(SutureError):
 
 def _scene_source(proc: Any) -> tuple[Any, tuple[Any, ...]] | None:
     """The source map that holds the scene's ``faults:`` and the path prefix to it."""
+    from suture_engine.language.scene_file import read_scene
     from suture_engine.language.source import load_yaml_file
 
     file = Path(str(proc.file))
@@ -114,15 +115,11 @@ def _scene_source(proc: Any) -> tuple[Any, tuple[Any, ...]] | None:
         return doc.source, ("scene",)
     if not isinstance(scene, str) or "${" in scene:
         return doc.source, ("scene",)  # a computed scene path: located at `scene:`
-    target = file.parent / scene
     try:
-        sdoc = load_yaml_file(target, str(Path(str(proc.file)).parent / scene))
+        sdoc = read_scene(file.parent / scene)
     except Exception:
         return None
-    sdata = sdoc.data
-    if isinstance(sdata, dict) and set(sdata) == {"scene"}:
-        return sdoc.source, ("scene",)
-    return sdoc.source, ()
+    return sdoc.source, sdoc.prefix
 
 
 def _located(proc: Any, items: list[tuple[int, str, str, str]]) -> list[Any]:

@@ -34,6 +34,7 @@ from suture_engine.language.expressions import (
 from suture_engine.language.model import FailurePolicy, ParamSpec, ProcedureDocument, StateDocument
 from suture_engine.language.procedure import LoadedState, Procedure, SourceLocation
 from suture_engine.language.scene import Scene
+from suture_engine.language.scene_file import resolve_extends, unwrap
 from suture_engine.language.source import (
     PathKey,
     SourceMap,
@@ -449,12 +450,23 @@ def _load_scene(
     ctx: _Context, head: _Head, source: SourceMap, file: Path, names: dict[str, Any]
 ) -> Scene | None:
     add = ctx.problems.append
+    hint = "; allow it with `includes_outside: true` or --allow-outside"
     if isinstance(head.scene, dict):
+        inline = unwrap(YamlDocument({"scene": head.scene}, source), ("scene",))
         try:
-            return Scene.model_validate(head.scene)
+            merged = resolve_extends(
+                inline,
+                file.parent,
+                _cached_yaml,
+                allowed=lambda p: _inside(ctx, head, p),
+                outside_hint=hint,
+            )
+            return Scene.model_validate(merged.data)
+        except ProblemError as exc:
+            ctx.problems.extend(exc.problems)
         except ValidationError as exc:
-            ctx.problems.extend(problems_from_validation(exc, source, ("scene",), Scene))
-            return None
+            ctx.problems.extend(problems_from_validation(exc, merged.source, merged.prefix, Scene))
+        return None
     ref = _resolve(ctx, head.scene, source, ("scene",), names)
     if not isinstance(ref, str):
         return None
@@ -464,8 +476,7 @@ def _load_scene(
         add(
             source.problem(
                 "include-outside",
-                f"scene {ref!r} is outside the procedure's folder tree; "
-                "allow it with `includes_outside: true` or --allow-outside",
+                f"scene {ref!r} is outside the procedure's folder tree" + hint,
                 ("scene",),
             )
         )
@@ -483,15 +494,20 @@ def _load_scene(
     except ProblemError as exc:
         ctx.problems.extend(exc.problems)
     else:
-        data = doc.data
-        prefix: PathKey = ()
-        if isinstance(data, dict) and set(data) == {"scene"}:
-            data, prefix = data["scene"], ("scene",)
-
         try:
-            scene = Scene.model_validate(data)
+            merged = resolve_extends(
+                unwrap(doc),
+                target.parent,
+                _cached_yaml,
+                allowed=lambda p: _inside(ctx, head, p),
+                outside_hint=hint,
+                seen=(key,),
+            )
+            scene = Scene.model_validate(merged.data)
+        except ProblemError as exc:
+            ctx.problems.extend(exc.problems)
         except ValidationError as exc:
-            ctx.problems.extend(problems_from_validation(exc, doc.source, prefix, Scene))
+            ctx.problems.extend(problems_from_validation(exc, merged.source, merged.prefix, Scene))
     ctx.scenes[key] = scene
     return scene
 
