@@ -243,6 +243,9 @@ class Row(NamedTuple):
     stiffness_scale: float
     base_error_mm: float
     error: str
+    last_fault: str = ""
+    """The run's last fault (``step: reason``, from the summary's ``last_fault``): on a
+    failed run, where and why it stopped."""
 
 
 def make_jobs(
@@ -342,10 +345,12 @@ def run_one(job: Job) -> Row:
                    *common, msg)  # fmt: skip
     s = result.summary
     kt = knot_type(s.knot)
+    fault = f"{s.last_fault['step']}: {s.last_fault['reason']}"[:200] if s.last_fault else ""
     ok = is_success(s.outcome, kt, binds_stitch(s.knot), single=job.single)
     return Row(
         job.algorithm, job.run, job.seed, s.outcome, kt, ok,
         float(s.max_tension_N), float(s.sim_time_s), time.perf_counter() - start, *common, "",
+        fault,
     )  # fmt: skip
 
 
@@ -416,14 +421,14 @@ def read_csv(path: Path) -> list[Row]:
         return []
     with path.open(newline="", encoding="utf-8") as fh:
         table = list(csv.reader(fh))
-    if not table or tuple(table[0]) != Row._fields:
+    # a table written before the last_fault column reads with it empty
+    if not table or tuple(table[0]) not in (Row._fields, Row._fields[:-1]):
         raise ValueError(f"{path}: not a results table (header {table[:1]})")
+    fields = tuple(table[0])
     rows = []
     for line, values in enumerate(table[1:], start=2):
         try:
-            rows.append(
-                Row(*(_TYPES.get(k, str)(v) for k, v in zip(Row._fields, values, strict=True)))
-            )
+            rows.append(Row(*(_TYPES.get(k, str)(v) for k, v in zip(fields, values, strict=True))))
         except ValueError as exc:
             raise ValueError(f"{path}, line {line}: {exc}") from None
     return rows
@@ -580,6 +585,8 @@ def main(argv: Sequence[str]) -> int:
             rows.append(row)
             write_csv(rows, results)  # after every run: a stopped sweep keeps its rows
             note = f"  {row.error}" if row.error else ""
+            if not row.success and row.last_fault and not row.error:
+                note = f"  [{row.last_fault[:90]}]"
             print(
                 f"  alg {row.algorithm} run {row.run:3d} seed {row.seed:10d}: {row.outcome:9s} "
                 f"knot {row.knot_type or '-':12s} {'OK ' if row.success else 'NO '}"

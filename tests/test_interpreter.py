@@ -128,6 +128,41 @@ def test_no_operator_and_exhausted_policy_stops_locked_as_failed(tmp_path: Path)
     assert "waiting for an operator" in s.metrics["stopped"]
 
 
+def test_the_summary_names_the_step_and_reason_of_the_last_fault() -> None:
+    """A run that locks says where and why (the last unpredictable event); a run whose
+    failures were all retried away keeps the last one; a clean run has none."""
+    retry = FailurePolicy(1)
+    plan = Plan(
+        "p",
+        "a",
+        {
+            "a": StepSpec("a", lambda: ScriptedSkill("a", after_s=0.02), "b", retry),
+            "b": StepSpec("b", lambda: ScriptedSkill("b", "failure", after_s=0.05), "end", retry),
+        },
+        {"end": Outcome.SUCCEEDED},
+    )
+    be = IdealBackend()
+    s = Interpreter(plan, be, be.reset()).run("p", "ideal")
+    assert (s.outcome, s.final_state) == ("failed", "lock")
+    assert s.last_fault is not None and s.last_fault["step"] == "b"
+    assert s.last_fault["reason"].startswith("skill-failure")
+    # b failed twice (once retried through a): the second time is the last
+    assert s.last_fault["t_s"] == pytest.approx(0.02 + 0.05 + 0.02 + 0.05, abs=0.01)
+    assert s.to_dict()["last_fault"]["step"] == "b"
+    ScriptedSkill.starts.clear()
+    plan = Plan(
+        "p",
+        "a",
+        {"a": StepSpec("a", lambda: ScriptedSkill("a", fail_first=1), "end", FailurePolicy(1))},
+        {"end": Outcome.SUCCEEDED},
+    )
+    s = Interpreter(plan, be, be.reset()).run("p", "ideal")
+    assert s.outcome == "succeeded" and s.last_fault is not None and s.last_fault["step"] == "a"
+    ok = Plan("p", "a", {"a": StepSpec("a", lambda: ScriptedSkill("a"), "end", retry)},
+              {"end": Outcome.SUCCEEDED})  # fmt: skip
+    assert Interpreter(ok, be, be.reset()).run("p", "ideal").last_fault is None
+
+
 def test_skill_exception_is_an_unpredictable_event_not_a_crash() -> None:
     plan = Plan(
         "p",

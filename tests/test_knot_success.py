@@ -191,7 +191,22 @@ def test_results_csv_has_one_row_per_run(tmp_path: Path) -> None:
 
 def test_results_csv_reads_back_as_the_rows_written(tmp_path: Path) -> None:
     rows = [
-        ks.Row(2, 1, 7, "failed", "unknot", False, 5.6, 119.6, 268.4, 1.22, 1.13, 1.69, ""),
+        ks.Row(
+            2,
+            1,
+            7,
+            "failed",
+            "unknot",
+            False,
+            5.6,
+            119.6,
+            268.4,
+            1.22,
+            1.13,
+            1.69,
+            "",
+            "tug: skill-failure:taut after 30.0 mm, more than 9.37 mm",
+        ),
         ks.Row(2, 0, 9, "error", "", False, float("nan"), 0.0, 2.5, 0.7, 1.0, 1.4, "E: x, y"),
         ks.Row(3, 0, 4, "succeeded", "square", True, 1.0, 150.0, 300.0, 1.0, 1.0, 0.5, ""),
     ]
@@ -203,6 +218,16 @@ def test_results_csv_reads_back_as_the_rows_written(tmp_path: Path) -> None:
     assert back[0].error == "E: x, y" and math.isnan(back[0].max_tension_N)
     assert not list(tmp_path.glob("*.tmp"))
     assert ks.read_csv(tmp_path / "none.csv") == []
+
+
+def test_a_table_written_before_the_last_fault_column_reads_with_it_empty(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "results.csv"
+    header = ",".join(ks.Row._fields[:-1])
+    path.write_text(header + "\n2,3,1695199924,failed,unknot,False,1.59,85.35,137.5,1.0,1.0,0.0,\n")
+    (row,) = ks.read_csv(path)
+    assert (row.run, row.outcome, row.last_fault) == (3, "failed", "")
 
 
 def test_a_foreign_results_table_is_refused_with_its_path(tmp_path: Path) -> None:

@@ -58,6 +58,9 @@ def _print_summary(summary: object, out_dir: Path | None) -> None:
         rows.append(("knots (ground truth)", types))
     else:
         rows.append(("knot", "not checked: this backend simulates no thread"))
+    fault = getattr(s, "last_fault", None)
+    if fault and getattr(s, "outcome", "") != "succeeded":
+        rows.append(("last fault", f"{fault['step']} at {fault['t_s']:.3f} s: {fault['reason']}"))
     stopped = getattr(s, "metrics", {}).get("stopped")
     if stopped:
         rows.append(("stopped", str(stopped)))

@@ -180,6 +180,9 @@ class Interpreter:
         self.tick_index = 0
         self.wall_time_s = 0.0
         self.stop_reason = ""
+        self.last_fault: dict[str, Any] | None = None
+        """The last unpredictable event of a step: its ``step``, ``reason`` and time
+        ``t_s`` [s] (None when there was none)."""
         self._waiting_ticks = 0
         self._last_skill: Any = None
         self._tension: dict[str, float] = {}
@@ -271,6 +274,9 @@ class Interpreter:
         self._last_skill = self.automaton.active_skill
         for rec in records:
             self.recorder.transition(time_ns, rec)
+            if rec.event == "fault" and rec.kind == "unpredictable":
+                step = rec.source.removeprefix("autonomous/")
+                self.last_fault = {"step": step, "reason": rec.reason, "t_s": time_ns * 1e-9}
 
     def _handle_operator(self, time_ns: int, obs: Observation) -> None:
         if self.operator_source is None:
@@ -660,4 +666,5 @@ class Interpreter:
             seed=self.seed,
             backend=backend_name,
             ticks=self.tick_index + 1,
+            last_fault=self.last_fault,
         )

@@ -48,6 +48,10 @@ class RunSummary:
         seed: the random seed.
         backend: the backend's name.
         ticks: ticks run.
+        last_fault: the last unpredictable event of a step (skill failure, timeout,
+            invariant violated, the monitor's emergency): ``step`` (dotted inside a
+            sub-procedure), ``reason`` and ``t_s`` [s] simulated; None when there was
+            none. On a run that ends failed or locked it says where and why.
     """
 
     procedure: str
@@ -67,6 +71,7 @@ class RunSummary:
     seed: int = 0
     backend: str = ""
     ticks: int = 0
+    last_fault: Mapping[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """A JSON-ready dict; non-finite numbers (NaN, inf) become ``None`` (JSON has none)."""
