@@ -150,8 +150,9 @@ def resolve_extends(
 
     Raises:
         ProblemError: ``scene-extends`` (not a file name, a cycle, a chain longer than
-            :data:`MAX_EXTENDS`), ``missing-scene``, ``include-outside``, or a problem of
-            the extended file; each located at the ``extends`` key that led there.
+            :data:`MAX_EXTENDS`, a file that holds no mapping), ``missing-scene`` or
+            ``include-outside``, located at the ``extends`` key that led there; or a
+            problem reading an extended file (its YAML), located in that file.
     """
     data = scene.data
     if not isinstance(data, dict) or "extends" not in data:
