@@ -386,6 +386,22 @@ def tally(rows: Sequence[Row]) -> list[Tally]:
     return out
 
 
+def stops(rows: Sequence[Row]) -> dict[int, dict[str, int]]:
+    """Where the failed runs stopped, per algorithm: the step of each one's last fault
+    (``-`` when it had none: it ended without one, e.g. ``succeeded`` with the wrong knot),
+    most frequent first."""
+    out: dict[int, dict[str, int]] = {}
+    for alg in sorted({r.algorithm for r in rows}):
+        steps = Counter(
+            r.last_fault.split(":", 1)[0] if r.last_fault else ("error" if r.error else "-")
+            for r in rows
+            if r.algorithm == alg and not r.success
+        )
+        if steps:
+            out[alg] = dict(steps.most_common())
+    return out
+
+
 def write_csv(rows: Sequence[Row], path: Path) -> None:
     """All rows, one per run, sorted by algorithm and run; written to a temporary file
     and renamed over ``path``."""
@@ -603,6 +619,8 @@ def main(argv: Sequence[str]) -> int:
             f"{t.algorithm:9d} {t.runs:5d} {t.successes:8d} {t.rate:6.0%} "
             f"[{t.low:5.0%}, {t.high:5.0%}]  {t.outcomes} / {t.knots}"
         )
+    for alg, steps in stops(rows).items():
+        print(f"algorithm {alg}, where the failed runs stopped: {steps}")
     print(f"[{time.perf_counter() - t0:.0f} s wall; rows in {args.out / 'results.csv'}]")
     return 0
 

@@ -220,6 +220,25 @@ def test_results_csv_reads_back_as_the_rows_written(tmp_path: Path) -> None:
     assert ks.read_csv(tmp_path / "none.csv") == []
 
 
+def test_the_failed_runs_are_counted_by_the_step_they_stopped_in() -> None:
+    def row(run: int, ok: bool, fault: str, error: str = "") -> ks.Row:
+        return ks.Row(2, run, run, "succeeded" if ok else "failed", "", ok, 1.0, 1.0, 1.0,
+                      1.0, 1.0, 0.0, error, fault)  # fmt: skip
+
+    rows = [
+        row(0, False, "mirrored-knot.take-up: skill-failure:not taut within 6.5 mm"),
+        row(1, True, "simple-knot.take-up: skill-failure:x"),  # a success is not counted
+        row(2, False, "mirrored-knot.take-up: skill-failure:y"),
+        row(3, False, "simple-knot.slide-to-tip: emergency:tension"),
+        row(4, False, ""),
+        row(5, False, "", "RuntimeError: x"),
+    ]
+    assert ks.stops(rows) == {
+        2: {"mirrored-knot.take-up": 2, "simple-knot.slide-to-tip": 1, "-": 1, "error": 1}
+    }
+    assert ks.stops([row(0, True, "")]) == {}
+
+
 def test_a_table_written_before_the_last_fault_column_reads_with_it_empty(
     tmp_path: Path,
 ) -> None:
