@@ -81,6 +81,7 @@ def test_states_follow_the_thesis_steps() -> None:
         order.append(state)
         state = proc.states[state].on["done"]
     assert order == [
+        "register",  # with register=true only
         "stitch",
         "pick-strand",
         "cross-tail",  # mirrored second throw only
