@@ -66,6 +66,7 @@ _NEEDLE_REAL_MASS = 5e-5
 """Weight the needle keeps after the lift [kg] (a small curved suture needle)."""
 
 FloatArray = NDArray[np.float64]
+Vec3 = tuple[float, float, float]
 
 
 class InvalidSutureParams(SutureError):
@@ -355,6 +356,7 @@ class Suture:
     needle_body: int = -1
     _needle_link: int = -1
     _lift: float = 0.0
+    _step_poses: tuple[list[Vec3], list[Vec3]] | None = None
 
     @classmethod
     def create(cls, client: int, path: Any, params: SutureParams | None = None) -> Suture:
@@ -510,20 +512,29 @@ class Suture:
                 p.WORLD_FRAME,
                 physicsClientId=self.client,
             )
+        self._step_poses = None
         stiff = self.params.bending_stiffness > 0.0
         if self._lift <= 0.0 and not stiff:
             return
+        c = self.client
+        positions = []
         axes = []
+        lift = [0.0, 0.0, self._lift]
         for b in self.bodies:
-            pos, orn = p.getBasePositionAndOrientation(b, physicsClientId=self.client)
+            pos, orn = p.getBasePositionAndOrientation(b, physicsClientId=c)
             if self._lift > 0.0:
-                p.applyExternalForce(
-                    b, -1, [0.0, 0.0, self._lift], pos, p.WORLD_FRAME, physicsClientId=self.client
-                )
-            if stiff:
-                axes.append(p.getMatrixFromQuaternion(orn)[2::3])
+                p.applyExternalForce(b, -1, lift, pos, p.WORLD_FRAME, physicsClientId=c)
+            positions.append(pos)
+            axes.append(p.getMatrixFromQuaternion(orn)[2::3])
+        self._step_poses = (positions, axes)
         if stiff:
             self._bend(np.array(axes))
+
+    def take_step_poses(self) -> tuple[list[Vec3], list[Vec3]] | None:
+        """The capsules' centres [m] and unit axes that :meth:`pre_step` read this step
+        (no body has moved since), handed over once; None when it read none."""
+        poses, self._step_poses = self._step_poses, None
+        return poses
 
     def _bend(self, axes: FloatArray) -> None:
         """Bending stiffness: at each joint, torques +-k (a_i x a_(i+1)), k = EI / segment

@@ -36,6 +36,7 @@ Call :meth:`Tissue.pre_step` before every physics step.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -323,17 +324,14 @@ class Tissue:
         self.channel = _resample_polyline(np.array(self._path), 25)
         self.exited = True
 
-    def _project(self, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-        """Nearest channel point, unit tangent and channel parameter s of each point in x."""
+    def _tangents(self, x: FloatArray) -> FloatArray:
+        """The unit tangent of the channel's segment nearest each point in ``x`` [m]."""
         _, _, a, u, uu = self._channel_geometry()
         t = np.clip(np.einsum("kij,ij->ki", x[:, None, :] - a[None], u) / uu, 0.0, 1.0)
         q = a[None] + t[..., None] * u[None]
-        d = np.linalg.norm(q - x[:, None, :], axis=2)
-        k = np.argmin(d, axis=1)
-        idx = np.arange(len(x))
-        s = (k + t[idx, k]) / len(u)
-        tangent = u[k] / np.sqrt(uu[k])[:, None]
-        return q[idx, k], tangent, s
+        k = np.argmin(np.linalg.norm(q - x[:, None, :], axis=2), axis=1)
+        out: FloatArray = u[k] / np.sqrt(uu[k])[:, None]
+        return out
 
     def _channel_geometry(
         self,
@@ -351,50 +349,68 @@ class Tissue:
         self._geometry = (ch, lam, a, u, uu)
         return self._geometry  # type: ignore[return-value]
 
-    def _thread_axes(self, sut: Suture, span: float) -> tuple[FloatArray, FloatArray]:
+    def _thread_axes(
+        self, sut: Suture, span: float
+    ) -> tuple[FloatArray, FloatArray, list[Vec3 | None], list[Vec3 | None]]:
         """Centre [m] and unit axis (tail to needle) of the capsules of ``sut`` that can be
         in or next to the channel (``span`` [m] long) this step: all of them the first
-        time, then those within two capsules of where the thread was (the rest: NaN)."""
+        time, then those within two capsules of where the thread was (the rest: NaN).
+
+        Returns them as arrays and as per-capsule tuples of Python floats (None outside
+        the window), for the per-capsule arithmetic. Poses the suture read in this step's
+        :meth:`Suture.pre_step` are used as they are (no body moved since)."""
         import pybullet as p
 
         c = self.client
         n = len(sut.bodies)
-        pos = np.full((n, 3), np.nan)
-        axis = np.full((n, 3), np.nan)
         window = range(n)
         if self._sigma is not None:
             seg = sut.params.segment_length
             lo = max(0, int(self._sigma / seg) - 2)
             window = range(lo, min(n, int((self._sigma + span) / seg) + 3))
+        pos_t: list[Vec3 | None] = [None] * n
+        axis_t: list[Vec3 | None] = [None] * n
+        read = sut.take_step_poses()
         for i in window:
-            x, q = p.getBasePositionAndOrientation(sut.bodies[i], physicsClientId=c)
-            pos[i] = x
-            axis[i] = p.getMatrixFromQuaternion(q)[2::3]
-        return pos, axis
+            if read is not None:
+                pos_t[i], axis_t[i] = read[0][i], read[1][i]
+            else:
+                x, q = p.getBasePositionAndOrientation(sut.bodies[i], physicsClientId=c)
+                pos_t[i], axis_t[i] = x, p.getMatrixFromQuaternion(q)[2::3]
+        pos = np.full((n, 3), np.nan)
+        axis = np.full((n, 3), np.nan)
+        if len(window):
+            pos[window.start : window.stop] = pos_t[window.start : window.stop]
+            axis[window.start : window.stop] = axis_t[window.start : window.stop]
+        return pos, axis, pos_t, axis_t
 
-    def _closest_on(
-        self, x: FloatArray, pos: FloatArray, axis: FloatArray, i: int, h: float
-    ) -> float:
-        """Parameter t in [0, 1] of the point of capsule ``i``'s axis nearest ``x``."""
-        a = pos[i] - h * axis[i]
-        return min(max(float((x - a) @ axis[i]) / (2 * h), 0.0), 1.0)
+    def _update_sigma(self, pos_t: list[Vec3 | None], axis_t: list[Vec3 | None], h: float) -> None:
+        """Follow the thread's arc length at the entry point as the thread slides.
 
-    def _update_sigma(self, pos: FloatArray, axis: FloatArray, h: float) -> None:
-        """Follow the thread's arc length at the entry point as the thread slides."""
+        Per capsule, in Python floats: the nearest point of the capsule's axis to the
+        entry point, and their distance (sums of products in order, as numpy's 3-vector
+        ``@`` and ``np.linalg.norm`` take them, so the values are theirs to the bit)."""
         seg = 2 * h
-        entry = np.asarray(self.channel[0])
-        n = len(pos)
+        e0, e1, e2 = (float(v) for v in self.channel[0])
+        n = len(pos_t)
         if self._sigma is None:
             window = range(n)
         else:
             k = int(self._sigma / seg)
             window = range(max(0, k - 1), min(n, k + 2))
-        best, sigma = np.inf, 0.0
+        best, sigma = math.inf, 0.0
         for i in window:
-            if np.isnan(pos[i, 0]):
+            x, a = pos_t[i], axis_t[i]
+            if x is None or a is None or math.isnan(x[0]):
                 continue
-            t = self._closest_on(entry, pos, axis, i, h)
-            d = float(np.linalg.norm(pos[i] + (2 * t - 1) * h * axis[i] - entry))
+            # t = clip(((entry - (x - h a)) . a) / (2 h), 0, 1)
+            dot = (e0 - (x[0] - h * a[0])) * a[0]
+            dot = dot + (e1 - (x[1] - h * a[1])) * a[1]
+            dot = dot + (e2 - (x[2] - h * a[2])) * a[2]
+            t = min(max(dot / (2 * h), 0.0), 1.0)
+            s = (2 * t - 1) * h
+            r0, r1, r2 = x[0] + s * a[0] - e0, x[1] + s * a[1] - e1, x[2] + s * a[2] - e2
+            d = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
             if d < best:
                 best, sigma = d, (i + t) * seg
         self._sigma = sigma
@@ -425,17 +441,18 @@ class Tissue:
         c = self.client
         lam = self._channel_geometry()[1]
         span = float(lam[-1])
-        pos, axes = self._thread_axes(sut, span)
+        pos, axes, pos_t, axis_t = self._thread_axes(sut, span)
         seg = sut.params.segment_length
         h = seg / 2
-        total = seg * len(pos)
-        self._update_sigma(pos, axes, h)
+        n = len(pos)
+        total = seg * n
+        self._update_sigma(pos_t, axis_t, h)
         sigma = float(self._sigma or 0.0)
         first = max(0, int(sigma / seg))
-        last = min(len(pos) - 1, int(min(sigma + span, total - 1e-12) / seg))
+        last = min(n - 1, int(min(sigma + span, total - 1e-12) / seg))
         inside = list(range(first, last + 1)) if sigma < total else []
         # The capsules in the channel and their neighbours pass through the pad.
-        passing = set(range(max(0, first - 1), min(len(pos), last + 2))) if inside else set()
+        passing = set(range(max(0, first - 1), min(n, last + 2))) if inside else set()
         if self._tracked is sut and sut.bodies:
             passing.add(len(sut.bodies) - 1)  # the needle's own capsule goes where it goes
         for i in passing ^ self._passing:
@@ -443,24 +460,29 @@ class Tissue:
         self._passing = passing
         self.inside = inside
         # Friction the anchors applied in the last step, along the channel (4.5, static part).
-        tangent = {}
+        tangent: dict[int, FloatArray] = {}
+        tan_t: dict[int, Vec3] = {}
         if inside:
-            _, tan_in, _ = self._project(pos[inside])
+            tan_in = self._tangents(pos[inside])
             tangent = dict(zip(inside, tan_in, strict=True))
+            tan_t = dict(zip(inside, map(tuple, tan_in.tolist()), strict=True))
         static = 0.0
         for i, cons in list(self._anchors.items()):
             if i in tangent:
-                force = np.asarray(p.getConstraintState(cons, physicsClientId=c)[:3])
-                static -= float(force @ tangent[i])
+                f0, f1, f2 = p.getConstraintState(cons, physicsClientId=c)[:3]
+                t0, t1, t2 = tan_t[i]
+                static -= f0 * t0 + f1 * t1 + f2 * t2
             else:
                 p.removeConstraint(cons, physicsClientId=c)
                 del self._anchors[i]
         if not inside:
             self.last_friction = self.last_sliding_speed = 0.0
             return
-        vel = np.array([p.getBaseVelocity(sut.bodies[i], physicsClientId=c)[0] for i in inside])
+        vel_t = [p.getBaseVelocity(sut.bodies[i], physicsClientId=c)[0] for i in inside]
+        vel = np.array(vel_t)
         tan = np.array([tangent[i] for i in inside])
         axial = np.einsum("ij,ij->i", vel, tan)
+        axial_t = axial.tolist()
         l_dot = float(axial.sum() / len(axial))  # the mean, as np.mean computes it
         mass = sut.params.segment_mass
         if self._dt is None:
@@ -476,7 +498,7 @@ class Tissue:
         # and a torque.
         arc = sigma + lam
         keep = arc < total
-        idx = np.minimum((arc[keep] / seg).astype(int), len(pos) - 1)
+        idx = np.minimum((arc[keep] / seg).astype(int), n - 1)
         x = self.channel[keep]
         ax = axes[idx]
         start = pos[idx] - h * ax
@@ -485,45 +507,31 @@ class Tissue:
         err = x - at
         err -= ax * np.einsum("ij,ij->i", err, ax)[:, None]
         pull = (self.k_lateral / len(self.channel)) * err
-        force_sum = np.zeros((len(pos), 3))
-        torque_sum = np.zeros((len(pos), 3))
+        force_sum = np.zeros((n, 3))
+        torque_sum = np.zeros((n, 3))
         np.add.at(force_sum, idx, pull)
         np.add.at(torque_sum, idx, _cross(at - pos[idx], pull))
         # The puncture holes hold the thread like eyelets: the thread's point nearest each
         # hole (among the capsules near its arc length there) is pulled onto it. Only once
         # the stitch is made (while the needle is in the tissue it leads the thread), and
         # taken up over HOLE_RAMP [s] so that the switch does not jerk the thread.
-        holes = []
+        touched = set(idx.tolist())
         if self.exited:
-            holes = [(self.channel[0], sigma), (self.channel[-1], sigma + span)]
             self._hole_gain = min(1.0, self._hole_gain + dt / HOLE_RAMP)
-        for hole, near in holes:
-            k0 = int(near / seg)
-            best, where, cap_i, at_t = np.inf, None, -1, 0.5
-            for i in range(max(0, k0 - 2), min(len(pos), k0 + 3)):
-                if np.isnan(pos[i, 0]):
-                    continue
-                a0 = pos[i] - h * axes[i]
-                tt = min(max(float((hole - a0) @ axes[i]) / seg, 0.0), 1.0)
-                q = a0 + seg * tt * axes[i]
-                d = float(np.linalg.norm(hole - q))
-                if d < best:
-                    best, where, cap_i, at_t = d, q, i, tt
-            if where is not None:
-                err_h = hole - where
-                # across the thread only, the thread's direction there blended with the
-                # neighbouring capsule's towards a joint: the thread slides through the hole
-                # freely (against the channel's friction alone), with no detent at the joints
-                other = cap_i + (1 if at_t > 0.5 else -1)
-                tangent_h = axes[cap_i].copy()
-                if 0 <= other < len(pos) and not np.isnan(axes[other, 0]):
-                    tangent_h += 2.0 * abs(at_t - 0.5) * axes[other]
-                    tangent_h /= np.linalg.norm(tangent_h)
-                err_h = err_h - tangent_h * float(err_h @ tangent_h)
-                f = self._hole_gain * self.k_hole * err_h
-                force_sum[cap_i] += f
-                torque_sum[cap_i] += _cross(where - pos[cap_i], f)
+            gain = self._hole_gain * self.k_hole
+            for hole, near in ((self.channel[0], sigma), (self.channel[-1], sigma + span)):
+                held = _hole_pull(hole.tolist(), near, pos_t, axis_t, h, gain)
+                if held is not None:
+                    cap_i, f, tq = held
+                    force_sum[cap_i] += f
+                    torque_sum[cap_i] += tq
+                    touched.add(cap_i)
+        force_t = force_sum.tolist()
+        torque_t = torque_sum.tolist()
         for row, i in enumerate(inside):
+            xi = pos_t[i]
+            assert xi is not None  # inside the window by construction
+            at_i = list(xi)
             anchor = self._anchors.get(i)
             if anchor is None:
                 anchor = p.createConstraint(
@@ -534,41 +542,111 @@ class Tissue:
                     p.JOINT_POINT2POINT,
                     [0, 0, 0],
                     [0, 0, 0],
-                    pos[i].tolist(),
+                    at_i,
                     physicsClientId=c,
                 )
                 self._anchors[i] = anchor
-            p.changeConstraint(
-                anchor, jointChildPivot=pos[i].tolist(), maxForce=cap, physicsClientId=c
+            p.changeConstraint(anchor, jointChildPivot=at_i, maxForce=cap, physicsClientId=c)
+            force = _guided_force(
+                force_t[i], vel_t[row], axis_t[i], c_lat, c_visc * axial_t[row], tan_t[i]
             )
-            v_perp = vel[row] - axes[i] * float(vel[row] @ axes[i])
-            force = force_sum[i] - c_lat * v_perp - c_visc * axial[row] * tan[row]
-            p.applyExternalForce(
-                sut.bodies[i],
-                -1,
-                force.tolist(),
-                pos[i].tolist(),
-                p.WORLD_FRAME,
-                physicsClientId=c,
-            )
-            if np.any(torque_sum[i]):
-                p.applyExternalTorque(
-                    sut.bodies[i], -1, torque_sum[i].tolist(), p.WORLD_FRAME, physicsClientId=c
-                )
+            p.applyExternalForce(sut.bodies[i], -1, force, at_i, p.WORLD_FRAME, physicsClientId=c)
+            torque_i = torque_t[i]
+            if torque_i[0] != 0.0 or torque_i[1] != 0.0 or torque_i[2] != 0.0:
+                p.applyExternalTorque(sut.bodies[i], -1, torque_i, p.WORLD_FRAME, physicsClientId=c)
         # a hole's capsule just outside the channel (the thread leaving it) gets its pull too
-        for j in np.flatnonzero(np.any(force_sum != 0.0, axis=1)):
-            i = int(j)
-            if i in tangent:
+        for i in sorted(touched):
+            fi = force_t[i]
+            if i in tangent or (fi[0] == 0.0 and fi[1] == 0.0 and fi[2] == 0.0):
                 continue
-            v = np.asarray(p.getBaseVelocity(sut.bodies[i], physicsClientId=c)[0])
-            v_perp = v - axes[i] * float(v @ axes[i])
-            force = force_sum[i] - c_lat * v_perp
-            p.applyExternalForce(
-                sut.bodies[i], -1, force.tolist(), pos[i].tolist(), p.WORLD_FRAME, physicsClientId=c
-            )
-            p.applyExternalTorque(
-                sut.bodies[i], -1, torque_sum[i].tolist(), p.WORLD_FRAME, physicsClientId=c
-            )
+            v = p.getBaseVelocity(sut.bodies[i], physicsClientId=c)[0]
+            force = _guided_force(fi, v, axis_t[i], c_lat, 0.0, None)
+            xi = pos_t[i]
+            at_i = [math.nan] * 3 if xi is None else list(xi)
+            p.applyExternalForce(sut.bodies[i], -1, force, at_i, p.WORLD_FRAME, physicsClientId=c)
+            p.applyExternalTorque(sut.bodies[i], -1, torque_t[i], p.WORLD_FRAME, physicsClientId=c)
+
+
+def _hole_pull(
+    hole: list[float],
+    near: float,
+    pos_t: list[Vec3 | None],
+    axis_t: list[Vec3 | None],
+    h: float,
+    gain: float,
+) -> tuple[int, Vec3, Vec3] | None:
+    """A puncture hole's eyelet pull (see :meth:`Tissue.pre_step`): the capsule (near arc
+    length ``near`` [m]) whose axis passes nearest ``hole`` [m], the force ``gain`` [N/m]
+    times the offset across the thread, and its torque about the capsule's centre.
+
+    Python floats, with the operations and their order of the 3-vector numpy expressions
+    they replace (``@`` and ``np.linalg.norm`` of 3-vectors sum their products in order),
+    so the values are the same to the bit. None when no capsule near is known.
+    """
+    seg = 2 * h
+    h0, h1, h2 = hole
+    k0 = int(near / seg)
+    n = len(pos_t)
+    best, where, cap_i, at_t = math.inf, (0.0, 0.0, 0.0), -1, 0.5
+    for i in range(max(0, k0 - 2), min(n, k0 + 3)):
+        x, a = pos_t[i], axis_t[i]
+        if x is None or a is None or math.isnan(x[0]):
+            continue
+        s0, s1, s2 = x[0] - h * a[0], x[1] - h * a[1], x[2] - h * a[2]
+        dot = (h0 - s0) * a[0] + (h1 - s1) * a[1] + (h2 - s2) * a[2]
+        tt = min(max(dot / seg, 0.0), 1.0)
+        st = seg * tt
+        q = (s0 + st * a[0], s1 + st * a[1], s2 + st * a[2])
+        r0, r1, r2 = h0 - q[0], h1 - q[1], h2 - q[2]
+        d = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+        if d < best:
+            best, where, cap_i, at_t = d, q, i, tt
+    if cap_i < 0:
+        return None
+    e0, e1, e2 = h0 - where[0], h1 - where[1], h2 - where[2]
+    # across the thread only, the thread's direction there blended with the neighbouring
+    # capsule's towards a joint: the thread slides through the hole freely (against the
+    # channel's friction alone), with no detent at the joints
+    other = cap_i + (1 if at_t > 0.5 else -1)
+    t_axis = axis_t[cap_i]
+    assert t_axis is not None
+    t0, t1, t2 = t_axis
+    o = axis_t[other] if 0 <= other < n else None
+    if o is not None and not math.isnan(o[0]):
+        w = 2.0 * abs(at_t - 0.5)
+        t0, t1, t2 = t0 + w * o[0], t1 + w * o[1], t2 + w * o[2]
+        norm = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+        t0, t1, t2 = t0 / norm, t1 / norm, t2 / norm
+    dd = e0 * t0 + e1 * t1 + e2 * t2
+    f0, f1, f2 = gain * (e0 - t0 * dd), gain * (e1 - t1 * dd), gain * (e2 - t2 * dd)
+    x = pos_t[cap_i]
+    assert x is not None
+    r0, r1, r2 = where[0] - x[0], where[1] - x[1], where[2] - x[2]
+    torque = (r1 * f2 - r2 * f1, r2 * f0 - r0 * f2, r0 * f1 - r1 * f0)
+    return cap_i, (f0, f1, f2), torque
+
+
+def _guided_force(
+    pull: list[float],
+    v: Vec3,
+    axis: Vec3 | None,
+    c_lat: float,
+    c_axial: float,
+    tangent: Vec3 | None,
+) -> list[float]:
+    """A guided capsule's force [N]: its summed ``pull`` [N], lateral damping ``c_lat``
+    [N*s/m] of its velocity ``v`` [m/s] across its ``axis``, and, with a channel
+    ``tangent``, the viscous friction ``c_axial`` [N] (coefficient times sliding speed)
+    along it. Python floats, in the operation order of the numpy expressions they replace.
+    """
+    a0, a1, a2 = (math.nan, math.nan, math.nan) if axis is None else axis
+    dd = v[0] * a0 + v[1] * a1 + v[2] * a2
+    p0 = pull[0] - c_lat * (v[0] - a0 * dd)
+    p1 = pull[1] - c_lat * (v[1] - a1 * dd)
+    p2 = pull[2] - c_lat * (v[2] - a2 * dd)
+    if tangent is None:
+        return [p0, p1, p2]
+    return [p0 - c_axial * tangent[0], p1 - c_axial * tangent[1], p2 - c_axial * tangent[2]]
 
 
 def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
