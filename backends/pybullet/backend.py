@@ -430,6 +430,7 @@ class PyBulletBackend:
                 scene.tissue.pre_step()
         self._p.stepSimulation(physicsClientId=self.client)
         if scene is not None:
+            scene.suture.stepped()
             scene.time += self.dt
 
     def _drive_tool(self, name: str, old: ToolState, new: ToolState) -> None:

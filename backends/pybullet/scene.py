@@ -171,6 +171,7 @@ class Scene:
         if self.tissue is not None:
             self.tissue.pre_step()
         p.stepSimulation(physicsClientId=self.client)
+        self.suture.stepped()
         self.time += 1.0 / PHYSICS_RATE
 
     def _hold_torque(self, name: str, robot: Any) -> Any:

@@ -357,6 +357,8 @@ class Suture:
     _needle_link: int = -1
     _lift: float = 0.0
     _step_poses: tuple[list[Vec3], list[Vec3]] | None = None
+    _settled: bool = False
+    _frame: tuple[list[Vec3], list[Vec3]] | None = None
 
     @classmethod
     def create(cls, client: int, path: Any, params: SutureParams | None = None) -> Suture:
@@ -515,20 +517,49 @@ class Suture:
         self._step_poses = None
         stiff = self.params.bending_stiffness > 0.0
         if self._lift <= 0.0 and not stiff:
+            self._settled = False
+            self._frame = None
             return
         c = self.client
-        positions = []
-        axes = []
-        lift = [0.0, 0.0, self._lift]
-        for b in self.bodies:
-            pos, orn = p.getBasePositionAndOrientation(b, physicsClientId=c)
-            if self._lift > 0.0:
+        positions, axes = self._read_frame()
+        self._settled = False  # the step about to run moves the bodies
+        self._frame = None
+        if self._lift > 0.0:
+            lift = [0.0, 0.0, self._lift]
+            for b, pos in zip(self.bodies, positions, strict=True):
                 p.applyExternalForce(b, -1, lift, pos, p.WORLD_FRAME, physicsClientId=c)
-            positions.append(pos)
-            axes.append(p.getMatrixFromQuaternion(orn)[2::3])
         self._step_poses = (positions, axes)
         if stiff:
             self._bend(np.array(axes))
+
+    def stepped(self) -> None:
+        """Say that a physics step has just run (call it right after ``stepSimulation``).
+
+        Until the next :meth:`pre_step` nothing moves the thread's bodies, so the poses
+        read once (by the ground truth, or by that pre-step) serve every reader. Without
+        this call every reader asks the simulator itself."""
+        self._settled = True
+        self._frame = None
+
+    def _read_frame(self) -> tuple[list[Vec3], list[Vec3]]:
+        """Each capsule's centre [m] and unit axis (tail to needle), as the simulator gives
+        them; read once per step after :meth:`stepped`."""
+        import pybullet as p
+
+        frame = self._frame
+        if frame is not None and self._settled:
+            return frame
+        c = self.client
+        positions = []
+        axes = []
+        for b in self.bodies:
+            pos, orn = p.getBasePositionAndOrientation(b, physicsClientId=c)
+            positions.append(pos)
+            axes.append(p.getMatrixFromQuaternion(orn)[2::3])
+        frame = (positions, axes)
+        if self._settled:
+            self._frame = frame
+        return frame
 
     def take_step_poses(self) -> tuple[list[Vec3], list[Vec3]] | None:
         """The capsules' centres [m] and unit axes that :meth:`pre_step` read this step
@@ -552,15 +583,8 @@ class Suture:
     # ---- ground truth (evaluation only) -------------------------------------------------
 
     def _poses(self) -> tuple[FloatArray, FloatArray]:
-        import pybullet as p
-
-        pos = np.empty((len(self.bodies), 3))
-        axis = np.empty((len(self.bodies), 3))
-        for i, b in enumerate(self.bodies):
-            x, q = p.getBasePositionAndOrientation(b, physicsClientId=self.client)
-            pos[i] = x
-            axis[i] = p.getMatrixFromQuaternion(q)[2::3]
-        return pos, axis
+        positions, axes = self._read_frame()
+        return np.array(positions, dtype=float), np.array(axes, dtype=float)
 
     def centerline(self) -> FloatArray:
         """The thread's centerline, tail to needle (ground truth).
@@ -602,10 +626,7 @@ class Suture:
         """
         import pybullet as p
 
-        c = self.client
-        pos = np.array(
-            [p.getBasePositionAndOrientation(b, physicsClientId=c)[0] for b in self.bodies]
-        )
+        pos = np.array(self._read_frame()[0], dtype=float)
         u = np.diff(pos, axis=0)
         u /= np.linalg.norm(u, axis=1, keepdims=True)
         force = np.array(
@@ -661,3 +682,5 @@ class Suture:
         self.bodies.clear()
         self.links.clear()
         self.needle_body = self._needle_link = -1
+        self._settled = False
+        self._frame = self._step_poses = None
