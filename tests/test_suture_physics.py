@@ -561,3 +561,38 @@ def test_thread_rests_on_the_stitchers_open_jaw() -> None:
     assert touching > 0 and z > jaw_z + 3e-3  # on the jaw's top (3 mm above its centre)
     z, jaw_z, touching = lowest_after(False)
     assert touching == 0 and z < jaw_z
+
+
+def test_the_threads_poses_are_read_once_per_step_and_never_stale() -> None:
+    """After ``stepped()`` the ground truth and the next pre-step share one read of the
+    capsules' poses; a pre-step ends that (the step after it moves them), so a script that
+    steps PyBullet itself after a pre-step reads fresh poses. Checked against PyBullet's
+    own poses, read directly."""
+    import pybullet as p
+
+    scene = build_scene({"tissue": {}, "suture": {"segments": 20}})
+    try:
+        sut, c = scene.suture, scene.client
+
+        def direct() -> np.ndarray:
+            return np.array(
+                [p.getBasePositionAndOrientation(b, physicsClientId=c)[0] for b in sut.bodies]
+            )
+
+        before = direct()
+        for _ in range(50):  # the thread falls and settles: its capsules move every step
+            scene.step()
+            assert np.array_equal(sut._poses()[0], direct())
+            assert np.array_equal(sut._poses()[0], direct())  # the second read: the cache
+        assert not np.array_equal(direct(), before)
+        moved = direct()
+        sut.pre_step()  # hands this step's poses over once, then none
+        handed = sut.take_step_poses()
+        assert handed is not None and np.array_equal(np.array(handed[0]), moved)
+        assert sut.take_step_poses() is None
+        p.stepSimulation(physicsClientId=c)  # no stepped(): nothing may be cached
+        assert not np.array_equal(direct(), moved)
+        assert np.array_equal(sut._poses()[0], direct())
+        assert np.array_equal(sut.centerline(), sut.centerline())
+    finally:
+        scene.close()

@@ -275,3 +275,135 @@ def test_the_tissue_cross_product_has_numpy_s_bits() -> None:
     b = rng.normal(size=(500, 3))
     assert np.array_equal(_cross(a, b), np.cross(a, b))
     assert all(np.array_equal(_cross(a[i], b[i]), np.cross(a[i], b[i])) for i in range(50))
+
+
+def _numpy_hole_pull(hole, near, pos, axes, h, gain):  # type: ignore[no-untyped-def]
+    """The eyelet pull as 3-vector numpy expressions (the form the float path replaced)."""
+    seg = 2 * h
+    k0 = int(near / seg)
+    best, where, cap_i, at_t = np.inf, None, -1, 0.5
+    for i in range(max(0, k0 - 2), min(len(pos), k0 + 3)):
+        if np.isnan(pos[i, 0]):
+            continue
+        a0 = pos[i] - h * axes[i]
+        tt = min(max(float((hole - a0) @ axes[i]) / seg, 0.0), 1.0)
+        q = a0 + seg * tt * axes[i]
+        d = float(np.linalg.norm(hole - q))
+        if d < best:
+            best, where, cap_i, at_t = d, q, i, tt
+    if where is None:
+        return None
+    err = hole - where
+    other = cap_i + (1 if at_t > 0.5 else -1)
+    tangent = axes[cap_i].copy()
+    if 0 <= other < len(pos) and not np.isnan(axes[other, 0]):
+        tangent += 2.0 * abs(at_t - 0.5) * axes[other]
+        tangent /= np.linalg.norm(tangent)
+    err = err - tangent * float(err @ tangent)
+    f = gain * err
+    return cap_i, f, np.cross(where - pos[cap_i], f)
+
+
+def _random_thread(rng: np.random.Generator, n: int = 12, seg: float = 3.5e-3):  # type: ignore[no-untyped-def]
+    """A wiggly chain of capsule centres and unit axes, some outside the window (NaN)."""
+    axes = rng.normal(size=(n, 3)) + np.array([1.0, 0.0, 0.0])
+    axes /= np.linalg.norm(axes, axis=1, keepdims=True)
+    pos = np.cumsum(axes * seg, axis=0) + rng.normal(scale=1e-4, size=(n, 3))
+    hidden = rng.random(n) < 0.2
+    pos[hidden] = np.nan
+    axes[hidden] = np.nan
+    pos_t = [None if np.isnan(p[0]) else tuple(p.tolist()) for p in pos]
+    axis_t = [None if np.isnan(a[0]) else tuple(a.tolist()) for a in axes]
+    return pos, axes, pos_t, axis_t
+
+
+def test_the_eyelet_pull_in_floats_has_the_numpy_expressions_bits() -> None:
+    """The hole's pull, force and torque, computed in Python floats, equal the 3-vector
+    numpy expressions they replaced bit for bit (random threads, holes and gains), so the
+    change kept every trace byte (checked too on whole runs: the same trace files)."""
+    from backends.pybullet.tissue import _hole_pull
+
+    rng = np.random.default_rng(3)
+    seg = 3.5e-3
+    compared = 0
+    for _ in range(400):
+        pos, axes, pos_t, axis_t = _random_thread(rng, seg=seg)
+        near = float(rng.uniform(0.0, 12 * seg))
+        hole = pos[min(int(near / seg), 11)] + rng.normal(scale=1e-3, size=3)
+        if np.isnan(hole[0]):
+            hole = rng.normal(scale=1e-2, size=3)
+        gain = float(rng.uniform(100.0, 2000.0))
+        want = _numpy_hole_pull(hole, near, pos, axes, seg / 2, gain)
+        got = _hole_pull(hole.tolist(), near, pos_t, axis_t, seg / 2, gain)
+        assert (want is None) == (got is None)
+        if want is None or got is None:
+            continue
+        assert got[0] == want[0]
+        assert np.array_equal(np.array(got[1]), want[1])
+        assert np.array_equal(np.array(got[2]), want[2])
+        compared += 1
+    assert compared > 300
+
+
+def test_the_guided_force_in_floats_has_the_numpy_expressions_bits() -> None:
+    """A capsule's guided force (pull, lateral damping, viscous friction) in floats equals
+    ``pull - c_lat * (v - a (v . a)) - (c_visc * l_dot) * t`` in numpy, bit for bit."""
+    from backends.pybullet.tissue import _guided_force
+
+    rng = np.random.default_rng(4)
+    for _ in range(2000):
+        pull = rng.normal(size=3) * 10 ** rng.uniform(-4, 1)
+        v = rng.normal(size=3) * 10 ** rng.uniform(-5, -1)
+        a = rng.normal(size=3)
+        a /= np.linalg.norm(a)
+        t = rng.normal(size=3)
+        t /= np.linalg.norm(t)
+        c_lat, c_visc, l_dot = rng.uniform(0.0, 2.0), rng.uniform(0.0, 0.5), rng.normal()
+        axial = np.float64(l_dot)
+        v_perp = v - a * float(v @ a)
+        want = pull - c_lat * v_perp - c_visc * axial * t
+        got = _guided_force(
+            pull.tolist(),
+            tuple(v.tolist()),
+            tuple(a.tolist()),
+            c_lat,
+            c_visc * l_dot,
+            tuple(t.tolist()),
+        )
+        assert np.array_equal(np.array(got), want)
+        outside = _guided_force(
+            pull.tolist(), tuple(v.tolist()), tuple(a.tolist()), c_lat, 0.0, None
+        )
+        assert np.array_equal(np.array(outside), pull - c_lat * v_perp)
+
+
+def test_the_entry_arc_length_in_floats_has_the_numpy_expressions_bits() -> None:
+    """Following the thread's arc length at the entry point in floats picks the same
+    capsule and the same arc length [m] as the numpy expressions did."""
+    rng = np.random.default_rng(5)
+    seg = 3.5e-3
+    h = seg / 2
+    for _ in range(300):
+        pos, axes, pos_t, axis_t = _random_thread(rng, seg=seg)
+        tissue = Tissue.__new__(Tissue)
+        tissue._sigma = None if rng.random() < 0.5 else float(rng.uniform(0.0, 11 * seg))
+        entry = rng.normal(scale=1e-2, size=3) + np.array([0.02, 0.0, 0.0])
+        tissue.channel = np.array([entry, entry + 1e-3])
+        start_sigma = tissue._sigma
+        tissue._update_sigma(pos_t, axis_t, h)
+        # the numpy form
+        if start_sigma is None:
+            window = range(len(pos))
+        else:
+            k = int(start_sigma / seg)
+            window = range(max(0, k - 1), min(len(pos), k + 2))
+        best, sigma = np.inf, 0.0
+        for i in window:
+            if np.isnan(pos[i, 0]):
+                continue
+            a = pos[i] - h * axes[i]
+            t = min(max(float((entry - a) @ axes[i]) / (2 * h), 0.0), 1.0)
+            d = float(np.linalg.norm(pos[i] + (2 * t - 1) * h * axes[i] - entry))
+            if d < best:
+                best, sigma = d, (i + t) * seg
+        assert tissue._sigma == sigma
