@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
-from scipy.optimize import minimize
+from scipy.optimize import LinearConstraint, minimize
 
 from suture_engine.control.constrained_qp import (
     INF,
@@ -51,6 +51,25 @@ def _scipy_oracle(qp: ConstrainedQP) -> np.ndarray:
         method="SLSQP",
         options={"ftol": 1e-15, "maxiter": 2000},
     )
+    if not res.success:
+        # SLSQP's line search can stall at this tolerance (status 8), depending on the
+        # BLAS's threads and code paths: solve again with scipy's interior-point
+        # trust-region method, from the same start, an oracle of its own.
+        res = minimize(
+            lambda z: 0.5 * z @ P @ z + q @ z,
+            np.zeros(qp.n),
+            jac=lambda z: P @ z + q,
+            hess=lambda z: P,
+            constraints=[
+                LinearConstraint(
+                    A,
+                    np.where(lo <= -INF / 2, -np.inf, lo),
+                    np.where(hi >= INF / 2, np.inf, hi),
+                )
+            ],
+            method="trust-constr",
+            options={"gtol": 1e-12, "xtol": 1e-14, "maxiter": 20000},
+        )
     assert res.success, res.message
     return np.asarray(res.x)
 
