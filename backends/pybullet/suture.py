@@ -514,21 +514,19 @@ class Suture:
                 p.WORLD_FRAME,
                 physicsClientId=self.client,
             )
-        self._step_poses = None
         stiff = self.params.bending_stiffness > 0.0
-        if self._lift <= 0.0 and not stiff:
-            self._settled = False
-            self._frame = None
-            return
-        c = self.client
-        positions, axes = self._read_frame()
+        frame = self._read_frame() if self._lift > 0.0 or stiff else None
+        self._step_poses = frame
         self._settled = False  # the step about to run moves the bodies
         self._frame = None
+        if frame is None:
+            return
+        c = self.client
+        positions, axes = frame
         if self._lift > 0.0:
             lift = [0.0, 0.0, self._lift]
             for b, pos in zip(self.bodies, positions, strict=True):
                 p.applyExternalForce(b, -1, lift, pos, p.WORLD_FRAME, physicsClientId=c)
-        self._step_poses = (positions, axes)
         if stiff:
             self._bend(np.array(axes))
 

@@ -529,8 +529,8 @@ class Tissue:
         force_t = force_sum.tolist()
         torque_t = torque_sum.tolist()
         for row, i in enumerate(inside):
-            xi = pos_t[i]
-            assert xi is not None  # inside the window by construction
+            xi, ai = pos_t[i], axis_t[i]
+            assert xi is not None and ai is not None  # inside the window by construction
             at_i = list(xi)
             anchor = self._anchors.get(i)
             if anchor is None:
@@ -548,7 +548,7 @@ class Tissue:
                 self._anchors[i] = anchor
             p.changeConstraint(anchor, jointChildPivot=at_i, maxForce=cap, physicsClientId=c)
             force = _guided_force(
-                force_t[i], vel_t[row], axis_t[i], c_lat, c_visc * axial_t[row], tan_t[i]
+                force_t[i], vel_t[row], ai, c_lat, c_visc * axial_t[row], tan_t[i]
             )
             p.applyExternalForce(sut.bodies[i], -1, force, at_i, p.WORLD_FRAME, physicsClientId=c)
             torque_i = torque_t[i]
@@ -559,10 +559,11 @@ class Tissue:
             fi = force_t[i]
             if i in tangent or (fi[0] == 0.0 and fi[1] == 0.0 and fi[2] == 0.0):
                 continue
+            xi, ai = pos_t[i], axis_t[i]
+            assert xi is not None and ai is not None  # pulled capsules lie in the window
             v = p.getBaseVelocity(sut.bodies[i], physicsClientId=c)[0]
-            force = _guided_force(fi, v, axis_t[i], c_lat, 0.0, None)
-            xi = pos_t[i]
-            at_i = [math.nan] * 3 if xi is None else list(xi)
+            force = _guided_force(fi, v, ai, c_lat, 0.0, None)
+            at_i = list(xi)
             p.applyExternalForce(sut.bodies[i], -1, force, at_i, p.WORLD_FRAME, physicsClientId=c)
             p.applyExternalTorque(sut.bodies[i], -1, torque_t[i], p.WORLD_FRAME, physicsClientId=c)
 
@@ -629,7 +630,7 @@ def _hole_pull(
 def _guided_force(
     pull: list[float],
     v: Vec3,
-    axis: Vec3 | None,
+    axis: Vec3,
     c_lat: float,
     c_axial: float,
     tangent: Vec3 | None,
@@ -639,7 +640,7 @@ def _guided_force(
     ``tangent``, the viscous friction ``c_axial`` [N] (coefficient times sliding speed)
     along it. Python floats, in the operation order of the numpy expressions they replace.
     """
-    a0, a1, a2 = (math.nan, math.nan, math.nan) if axis is None else axis
+    a0, a1, a2 = axis
     dd = v[0] * a0 + v[1] * a1 + v[2] * a2
     p0 = pull[0] - c_lat * (v[0] - a0 * dd)
     p1 = pull[1] - c_lat * (v[1] - a1 * dd)
