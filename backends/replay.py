@@ -87,6 +87,8 @@ class ReplayBackend:
         self.meta: dict[str, Any] = dict(reader.meta)
         self.rate = float(self.meta.get("control_rate_hz", 1000.0))
         self.period_ns = round(1e9 / self.rate)
+        self.dt = 1.0 / self.rate
+        """The tick's period [s], as the live backends hold it (1e-3 at 1 kHz)."""
         self.robots: tuple[str, ...] = tuple(self.meta.get("robots") or ())
         self._q: dict[str, dict[int, list[float]]] = {r: {} for r in self.robots}
         self._w: dict[str, dict[int, list[float]]] = {r: {} for r in self.robots}
@@ -191,7 +193,10 @@ class ReplayBackend:
                 if load != tool.hook_load:
                     tool = replace(tool, hook_load=load)
             robots[r] = RobotMeasurement.trusted(frozen[0], frozen[1], tool)
-        return Measurement(k, k * self.period_ns * 1e-9, robots)
+        # tick * dt, to the bit as the live backends compute a tick's time (k * period_ns
+        # * 1e-9 is a different float on some ticks, and a skill's trajectory sampled at
+        # it then differs in the last bit from the recorded run's)
+        return Measurement(k, k * self.dt, robots)
 
     def apply(self, command: Command) -> None:
         """Keep the last command (the comparison reads the trace the engine writes) and

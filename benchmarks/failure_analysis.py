@@ -35,6 +35,9 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from typing import Any, NamedTuple
 
+import suture_engine  # noqa: F401 (first: it pins OpenBLAS' kernel before numpy loads)
+
+# isort: split
 import numpy as np
 from numpy.typing import NDArray
 

@@ -69,6 +69,9 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import Any, NamedTuple
 
+import suture_engine  # noqa: F401 (first: it pins OpenBLAS' kernel before numpy loads)
+
+# isort: split
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent

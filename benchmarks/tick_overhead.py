@@ -25,6 +25,9 @@ import time
 from pathlib import Path
 from typing import Any
 
+import suture_engine  # noqa: F401 (first: it pins OpenBLAS' kernel before numpy loads)
+
+# isort: split
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent

@@ -8,9 +8,17 @@ supervisory hybrid automaton (``suture_engine.runtime``), writing a trace
 
 Heavy modules (pybullet, osqp, scipy, matplotlib) are imported lazily so that
 ``suture validate`` starts fast.
+
+Importing the package first pins OpenBLAS to one kernel set
+(``suture_engine.arithmetic``), so that a seed gives the same trace on every x86-64
+machine with AVX2; it must run before numpy loads.
 """
 
 from __future__ import annotations
+
+from suture_engine.arithmetic import pin_at_import
+
+pin_at_import()
 
 __all__ = ["__version__"]
 

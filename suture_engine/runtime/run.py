@@ -397,7 +397,13 @@ def run_procedure(
 
 
 def _meta_extra(path: str | Path, sets: Sequence[str], faults: Sequence[Any]) -> dict[str, Any]:
-    extra: dict[str, Any] = {"procedure_file": str(path), "sets": list(sets)}
+    from suture_engine.arithmetic import arithmetic_record
+
+    extra: dict[str, Any] = {
+        "procedure_file": str(path),
+        "sets": list(sets),
+        "arithmetic": arithmetic_record(),
+    }
     if faults:
         from suture_engine.faults.syntax import format_fault
 

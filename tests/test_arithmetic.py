@@ -1,0 +1,95 @@
+"""The pinned BLAS kernel: when it is pinned, and what it computes."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from suture_engine.arithmetic import CANONICAL_CORE, cpu_flags, pin_blas_kernel
+
+AVX2 = frozenset({"fpu", "sse2", "avx", "avx2", "fma"})
+
+
+def test_pins_on_an_x86_cpu_with_avx2_and_fma() -> None:
+    env: dict[str, str] = {}
+    assert pin_blas_kernel(env, flags=AVX2, machine="x86_64", numpy_loaded=False) == "pinned"
+    assert env == {"OPENBLAS_CORETYPE": CANONICAL_CORE}
+
+
+def test_an_avx512_cpu_is_pinned_to_the_same_kernel() -> None:
+    env: dict[str, str] = {}
+    flags = AVX2 | {"avx512f", "avx512dq", "avx512vl"}
+    assert pin_blas_kernel(env, flags=flags, machine="x86_64", numpy_loaded=False) == "pinned"
+    assert env["OPENBLAS_CORETYPE"] == CANONICAL_CORE
+
+
+@pytest.mark.parametrize(
+    ("env", "flags", "machine", "loaded", "outcome"),
+    [
+        ({"OPENBLAS_CORETYPE": "Zen"}, AVX2, "x86_64", False, "user"),
+        ({}, AVX2, "x86_64", True, "numpy-first"),
+        ({}, AVX2, "aarch64", False, "not-x86"),
+        ({}, frozenset({"sse2", "avx"}), "x86_64", False, "cpu"),
+        ({}, frozenset({"avx2"}), "x86_64", False, "cpu"),
+    ],
+)
+def test_left_alone(
+    env: dict[str, str], flags: frozenset[str], machine: str, loaded: bool, outcome: str
+) -> None:
+    before = dict(env)
+    assert pin_blas_kernel(env, flags=flags, machine=machine, numpy_loaded=loaded) == outcome
+    assert env == before
+
+
+def test_cpu_flags_are_read_from_the_first_processor(tmp_path: Path) -> None:
+    info = tmp_path / "cpuinfo"
+    info.write_text(
+        "processor\t: 0\nvendor_id\t: AuthenticAMD\nflags\t\t: fpu sse2 avx2 fma\n\n"
+        "processor\t: 1\nflags\t\t: fpu\n"
+    )
+    assert cpu_flags(info) == frozenset({"fpu", "sse2", "avx2", "fma"})
+    assert cpu_flags(tmp_path / "missing") == frozenset()
+
+
+def _fresh(code: str) -> dict[str, object]:
+    env = {k: v for k, v in __import__("os").environ.items() if k != "OPENBLAS_CORETYPE"}
+    res = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, env=env, check=True
+    )
+    return json.loads(res.stdout)
+
+
+def test_import_pins_before_numpy_loads_and_norms_round_in_order() -> None:
+    # Oracle: Python's own float arithmetic, each product and sum rounded in turn. The
+    # Haswell kernel's dot product rounds so; the SkylakeX kernel fuses the multiply-adds
+    # (on this test's vectors its norms differ in the last bit about one time in ten).
+    if not {"avx2", "fma"} <= cpu_flags():
+        pytest.skip("this CPU cannot run the canonical kernel")
+    out = _fresh(
+        "import json, math, os\n"
+        "import suture_engine\n"
+        "import numpy as np\n"
+        "from suture_engine.arithmetic import arithmetic_record\n"
+        "rng = np.random.default_rng(0)\n"
+        "v = rng.standard_normal((20000, 3)) * 10.0 ** rng.integers(-4, 4, (20000, 1))\n"
+        "same = sum(float(np.linalg.norm(np.array(x))) == math.sqrt(x[0]*x[0] + x[1]*x[1]"
+        " + x[2]*x[2]) for x in v.tolist())\n"
+        "print(json.dumps({'core': os.environ.get('OPENBLAS_CORETYPE'), 'same': same,"
+        " 'record': arithmetic_record()}))\n"
+    )
+    assert out["core"] == CANONICAL_CORE
+    assert out["record"] == {"blas_kernel": CANONICAL_CORE, "pin": "pinned"}
+    assert out["same"] == 20000
+
+
+def test_numpy_loaded_first_is_recorded_as_unpinned() -> None:
+    out = _fresh(
+        "import json, numpy, suture_engine\n"
+        "from suture_engine.arithmetic import arithmetic_record\n"
+        "print(json.dumps(arithmetic_record()))\n"
+    )
+    assert out == {"blas_kernel": "auto", "pin": "numpy-first"}
