@@ -22,6 +22,7 @@ jaw touching the front (or back) of the other tool's stem.
 
 from __future__ import annotations
 
+import math
 from typing import Any, ClassVar, Literal, NamedTuple
 
 from pydantic import Field
@@ -291,7 +292,7 @@ def axis_rotation(axis: Any, angle: float) -> Any:
     k = np.asarray(axis, dtype=float)
     k = k / np.linalg.norm(k)
     kx = np.array(((0.0, -k[2], k[1]), (k[2], 0.0, -k[0]), (-k[1], k[0], 0.0)))
-    return np.eye(3) + np.sin(angle) * kx + (1.0 - np.cos(angle)) * (kx @ kx)
+    return np.eye(3) + math.sin(angle) * kx + (1.0 - math.cos(angle)) * (kx @ kx)
 
 
 class RotateAbout(Skill):

@@ -16,16 +16,25 @@ does it, so ``suture run``, the pytest plugin and sweep workers get it. It chang
 nothing where the variable is already set (the user's choice wins), on other CPUs, or
 once numpy is loaded (then :func:`arithmetic_record` says so in the trace).
 
-Not pinned by this: numpy's own SIMD loops (its elementwise transcendental functions
-and einsum pick AVX-512 code on AVX-512 machines), MKL builds of numpy, non-x86 CPUs.
+numpy's own SIMD loops are not pinned by it: on AVX-512 machines its elementwise
+sines and cosines (SVML) and its ``einsum`` reductions run other code. The physics and
+the skills use :func:`row_dot`, :func:`sin`, :func:`cos` and :func:`arcsin` for those: elementwise
+products and sums, and the C library's functions, which round the same on every CPU.
+Not covered: ``np.tanh`` in the hybrid force controller (numpy's own, which already
+differs from the C library's here), MKL builds of numpy, non-x86 CPUs.
 """
 
 from __future__ import annotations
 
+import math
 import os
 import platform
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:  # numpy is not imported here at run time: the pin must come first
+    from numpy.typing import NDArray
 
 CANONICAL_CORE = "Haswell"
 """The OpenBLAS kernel set every traced run uses where the CPU can run it."""
@@ -106,3 +115,39 @@ def pin_at_import() -> None:
     core = os.environ.get("OPENBLAS_CORETYPE")
     if outcome in ("pinned", "user") and core:
         _state["kernel"] = core
+
+
+def row_dot(a: NDArray[Any], b: NDArray[Any]) -> NDArray[Any]:
+    """Dot products of 3-vectors along the last axis (broadcast), summed (x0 + x2) + x1.
+
+    The same floats as ``np.einsum("ij,ij->i", a, b)`` (and ``"kij,ij->ki"``) gives on
+    AVX2 machines, whose loop takes the three terms in that order, but from elementwise
+    products and sums, which round the same on every CPU.
+    """
+    p = a * b
+    out: NDArray[Any] = (p[..., 0] + p[..., 2]) + p[..., 1]
+    return out
+
+
+def _libm(fn: Any, x: NDArray[Any]) -> NDArray[Any]:
+    """``fn`` (a ``math`` function) applied elementwise to ``x``."""
+    import numpy as np
+
+    arr = np.asarray(x, dtype=np.float64)
+    flat = arr.ravel().tolist()
+    return np.fromiter(map(fn, flat), np.float64, arr.size).reshape(arr.shape)
+
+
+def sin(x: NDArray[Any]) -> NDArray[Any]:
+    """Elementwise sine [-] of ``x`` [rad] by the C library (``math.sin``), on any CPU."""
+    return _libm(math.sin, x)
+
+
+def cos(x: NDArray[Any]) -> NDArray[Any]:
+    """Elementwise cosine [-] of ``x`` [rad] by the C library (``math.cos``), on any CPU."""
+    return _libm(math.cos, x)
+
+
+def arcsin(x: NDArray[Any]) -> NDArray[Any]:
+    """Elementwise arcsine [rad] of ``x`` [-] in [-1, 1] by the C library, on any CPU."""
+    return _libm(math.asin, x)

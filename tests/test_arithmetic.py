@@ -93,3 +93,56 @@ def test_numpy_loaded_first_is_recorded_as_unpinned() -> None:
         "print(json.dumps(arithmetic_record()))\n"
     )
     assert out == {"blas_kernel": "auto", "pin": "numpy-first"}
+
+
+def test_row_dot_sums_its_products_in_a_fixed_order() -> None:
+    # Oracle: Python's own float arithmetic on the same numbers, (x0 + x2) + x1.
+    import numpy as np
+
+    from suture_engine.arithmetic import row_dot
+
+    rng = np.random.default_rng(5)
+    a = rng.standard_normal((500, 3)) * 10.0 ** rng.integers(-6, 3, (500, 1))
+    b = rng.standard_normal((500, 3))
+    pairs = zip(a.tolist(), b.tolist(), strict=True)
+    want = [(x[0] * y[0] + x[2] * y[2]) + x[1] * y[1] for x, y in pairs]
+    assert row_dot(a, b).tolist() == want
+    # broadcast, as the tissue's channel search uses it: (k, i, 3) against (i, 3)
+    pts, u = rng.standard_normal((4, 1, 3)), rng.standard_normal((6, 3))
+    got = row_dot(pts - u[None], u)
+    assert got.shape == (4, 6)
+    d = (pts - u[None]).tolist()
+    assert got[2, 5] == (d[2][5][0] * u[5, 0] + d[2][5][2] * u[5, 2]) + d[2][5][1] * u[5, 1]
+
+
+def test_row_dot_is_numpys_einsum_on_an_avx2_cpu() -> None:
+    # The traces of the thread were made with np.einsum on AVX2; row_dot keeps their bits.
+    import numpy as np
+
+    from suture_engine.arithmetic import row_dot
+
+    if "avx512f" in cpu_flags() or not {"avx2"} <= cpu_flags():
+        pytest.skip("numpy's einsum loop is the AVX2 one only on an AVX2 CPU without AVX-512")
+    rng = np.random.default_rng(6)
+    for n in (1, 2, 3, 7, 8, 40, 41, 99):
+        a, b = rng.standard_normal((n, 3)), rng.standard_normal((n, 3))
+        assert row_dot(a, b).tolist() == np.einsum("ij,ij->i", a, b).tolist()
+        x, s = rng.standard_normal((n, 3)), rng.standard_normal((5, 3))
+        want = np.einsum("kij,ij->ki", x[:, None, :] - s[None], s)
+        assert row_dot(x[:, None, :] - s[None], s).tolist() == want.tolist()
+
+
+def test_elementwise_functions_are_the_c_librarys() -> None:
+    import math
+
+    import numpy as np
+
+    from suture_engine.arithmetic import arcsin, cos, sin
+
+    x = np.linspace(-7.0, 7.0, 303).reshape(3, 101)
+    assert sin(x).shape == (3, 101)
+    assert sin(x).ravel().tolist() == [math.sin(v) for v in x.ravel().tolist()]
+    assert cos(x).ravel().tolist() == [math.cos(v) for v in x.ravel().tolist()]
+    y = np.linspace(-1.0, 1.0, 201)
+    assert arcsin(y).tolist() == [math.asin(v) for v in y.tolist()]
+    assert float(sin(np.float64(0.5))) == math.sin(0.5)

@@ -42,6 +42,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from suture_engine.arithmetic import cos, row_dot, sin
 from suture_engine.errors import SutureError
 
 __all__ = [
@@ -227,9 +228,9 @@ def _open_trefoil(mirror: bool, samples: int) -> FloatArray:
     """
     delta = 0.35
     t = np.linspace(3 * math.pi - delta, math.pi + delta, samples)
-    x = np.sin(t) + 2 * np.sin(2 * t)
-    y = np.cos(t) - 2 * np.cos(2 * t)
-    z = -np.sin(3 * t)
+    x = sin(t) + 2 * sin(2 * t)
+    y = cos(t) - 2 * cos(2 * t)
+    z = -sin(3 * t)
     pts = np.stack([x, y, z], axis=1)
     if mirror:
         pts[:, 2] *= -1
@@ -631,7 +632,7 @@ class Suture:
             [p.getConstraintState(c, physicsClientId=self.client)[:3] for c in self.links]
         )
         # PyBullet reports the joint force acting on the child (capsule i + 1).
-        axial: FloatArray = np.clip(-np.einsum("ij,ij->i", force, u), 0.0, None)
+        axial: FloatArray = np.clip(-row_dot(force, u), 0.0, None)
         return axial
 
     def contacts(self) -> list[SutureContact]:

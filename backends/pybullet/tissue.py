@@ -43,6 +43,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from suture_engine.arithmetic import row_dot, sin
 from suture_engine.errors import SutureError
 
 if TYPE_CHECKING:
@@ -198,7 +199,7 @@ class Tissue:
             **kwargs,  # type: ignore[arg-type]
         )
         s = np.linspace(0.0, 1.0, 25)
-        self.channel = a + s[:, None] * (b - a) - depth * np.sin(np.pi * s)[:, None] * n
+        self.channel = a + s[:, None] * (b - a) - depth * sin(np.pi * s)[:, None] * n
         ex = across / np.linalg.norm(across)
         ey = np.cross(n, ex)
         rot = np.column_stack([ex, ey, n])
@@ -327,7 +328,7 @@ class Tissue:
     def _tangents(self, x: FloatArray) -> FloatArray:
         """The unit tangent of the channel's segment nearest each point in ``x`` [m]."""
         _, _, a, u, uu = self._channel_geometry()
-        t = np.clip(np.einsum("kij,ij->ki", x[:, None, :] - a[None], u) / uu, 0.0, 1.0)
+        t = np.clip(row_dot(x[:, None, :] - a[None], u) / uu, 0.0, 1.0)
         q = a[None] + t[..., None] * u[None]
         k = np.argmin(np.linalg.norm(q - x[:, None, :], axis=2), axis=1)
         out: FloatArray = u[k] / np.sqrt(uu[k])[:, None]
@@ -345,7 +346,7 @@ class Tissue:
         lam = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(ch, axis=0), axis=1))])
         a, b = ch[:-1], ch[1:]
         u = b - a
-        uu = np.maximum(np.einsum("ij,ij->i", u, u), 1e-18)
+        uu = np.maximum(row_dot(u, u), 1e-18)
         self._geometry = (ch, lam, a, u, uu)
         return self._geometry  # type: ignore[return-value]
 
@@ -481,7 +482,7 @@ class Tissue:
         vel_t = [p.getBaseVelocity(sut.bodies[i], physicsClientId=c)[0] for i in inside]
         vel = np.array(vel_t)
         tan = np.array([tangent[i] for i in inside])
-        axial = np.einsum("ij,ij->i", vel, tan)
+        axial = row_dot(vel, tan)
         axial_t = axial.tolist()
         l_dot = float(axial.sum() / len(axial))  # the mean, as np.mean computes it
         mass = sut.params.segment_mass
@@ -502,10 +503,10 @@ class Tissue:
         x = self.channel[keep]
         ax = axes[idx]
         start = pos[idx] - h * ax
-        t = np.clip(np.einsum("ij,ij->i", x - start, ax) / seg, 0.0, 1.0)
+        t = np.clip(row_dot(x - start, ax) / seg, 0.0, 1.0)
         at = start + (seg * t)[:, None] * ax
         err = x - at
-        err -= ax * np.einsum("ij,ij->i", err, ax)[:, None]
+        err -= ax * row_dot(err, ax)[:, None]
         pull = (self.k_lateral / len(self.channel)) * err
         force_sum = np.zeros((n, 3))
         torque_sum = np.zeros((n, 3))

@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple
 import numpy as np
 from numpy.typing import NDArray
 
+from suture_engine.arithmetic import row_dot
 from suture_engine.errors import SutureError
 
 if TYPE_CHECKING:
@@ -664,7 +665,7 @@ class Grasper(Tool):
         pts = self.suture.centerline()
         a, b = pts[:-1], pts[1:]
         u = b - a
-        t = np.clip(np.einsum("ij,ij->i", np.asarray(x) - a, u) / np.einsum("ij,ij->i", u, u), 0, 1)
+        t = np.clip(row_dot(np.asarray(x) - a, u) / row_dot(u, u), 0, 1)
         d = np.linalg.norm(a + t[:, None] * u - np.asarray(x), axis=1)
         i = int(np.argmin(d))
         return i if d[i] <= self.reach else -1

@@ -275,7 +275,7 @@ class Circle(EqualityFixture):
     def free(self, x: Array) -> Array:
         """f(x) = (theta, phi) (6.49-6.50) [rad, rad]."""
         a, b, _ = self._planar(x)
-        return np.array([np.arctan2(b, a), float(np.asarray(x, dtype=float)[3])])
+        return np.array([math.atan2(float(b), float(a)), float(np.asarray(x, dtype=float)[3])])
 
     def free_jacobian(self, x: Array) -> Array:
         """Jf(x) (6.51) with rho^2 in the denominator (exact away from the circle too)."""
@@ -295,7 +295,7 @@ class Circle(EqualityFixture):
         rho = float(np.sqrt(max(self.radius**2 + 2.0 * self.radius * c1, 0.0)))
         u: Array = self._u  # type: ignore[attr-defined]
         v: Array = self._v  # type: ignore[attr-defined]
-        p = self.center + rho * (np.cos(theta) * u + np.sin(theta) * v) + c2 * self.normal
+        p = self.center + rho * (math.cos(theta) * u + math.sin(theta) * v) + c2 * self.normal
         return np.array([p[0], p[1], p[2], phi])
 
 
@@ -393,7 +393,7 @@ class Cone(Fixture):
     def value(self, x: Array) -> Array:
         """g(x) [m]; shape (1,)."""
         d = np.asarray(x, dtype=float)[:3] - self.apex
-        return np.array([np.cos(self.half_angle) * np.linalg.norm(d) - float(self.axis @ d)])
+        return np.array([math.cos(self.half_angle) * np.linalg.norm(d) - float(self.axis @ d)])
 
     def linearize(self, x: Array) -> tuple[Array, Array]:
         """g(x) and dg/dx in one pass on plain floats."""
@@ -412,5 +412,5 @@ class Cone(Fixture):
         dist = float(np.linalg.norm(d))
         jc = np.zeros((1, 4))
         radial = d / dist if dist > 1e-12 else np.zeros(3)
-        jc[0, :3] = np.cos(self.half_angle) * radial - self.axis
+        jc[0, :3] = math.cos(self.half_angle) * radial - self.axis
         return jc

@@ -46,6 +46,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from suture_engine.arithmetic import arcsin, cos, sin
 from suture_engine.errors import SutureError
 
 __all__ = [
@@ -256,7 +257,7 @@ def placement_trajectory(
     for i, a in enumerate(anchors):
         leg = a[None, :] - knot
         dist = np.linalg.norm(leg, axis=1)
-        gamma[:, i] = np.arcsin(np.clip(-(leg @ n) / dist, -1.0, 1.0))
+        gamma[:, i] = arcsin(np.clip(-(leg @ n) / dist, -1.0, 1.0))
         bmax[:, i] = [beta_max(max(g, 0.0), mu) for g in gamma[:, i]]
         delta[:, i] = dist[0] - dist
         dists.append(dist)
@@ -271,10 +272,10 @@ def placement_trajectory(
             raise PlacementInfeasible(float(betas[k, i]), float(bmax[k, i]), float(height[k]))
     ends = []
     for i, u in enumerate(dirs):
-        ray = np.cos(betas[:, i])[:, None] * u[None, :] + np.sin(betas[:, i])[:, None] * n[None, :]
+        ray = cos(betas[:, i])[:, None] * u[None, :] + sin(betas[:, i])[:, None] * n[None, :]
         ends.append(knot + (lengths[i] + delta[:, i])[:, None] * ray)
     with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = np.where(gamma > 0, np.sin(betas) / np.sin(gamma), np.inf)
+        ratio = np.where(gamma > 0, sin(betas) / sin(gamma), np.inf)
     return PlacementTrajectory(
         time=time,
         knot=knot,
