@@ -67,3 +67,14 @@ def test_goldens_replay_to_the_bit_under_the_canonical_blas_kernel(
     recorded = [m for m in recorded if not m[0].startswith("/joint_state")]
     assert len(recorded) > 1000
     assert recorded == replayed, _first_difference(recorded, replayed)
+
+
+def test_a_check_notes_a_trace_recorded_under_another_blas_kernel() -> None:
+    from suture_engine.runtime.run import _arithmetic_note
+
+    now = arithmetic_record()["blas_kernel"]
+    note = _arithmetic_note({"blas_kernel": "SkylakeX", "pin": "user"})
+    assert "SkylakeX" in note and now in note
+    assert "unrecorded" in _arithmetic_note(None)
+    if now != "auto":
+        assert _arithmetic_note({"blas_kernel": now, "pin": "pinned"}) == ""

@@ -465,6 +465,20 @@ def _run_faults(proc: Any, plan: Any, backend: str, specs: Sequence[str]) -> lis
     return scene_faults + cli
 
 
+def _arithmetic_note(recorded: Any) -> str:
+    """A note when the trace was recorded under another BLAS kernel than this process has."""
+    from suture_engine.arithmetic import arithmetic_record
+
+    now = arithmetic_record()["blas_kernel"]
+    was = recorded.get("blas_kernel", "auto") if isinstance(recorded, dict) else "unrecorded"
+    if was == now and now != "auto":
+        return ""
+    return (
+        f"note: recorded with OpenBLAS kernel {was}, replayed with {now}: commands may differ "
+        "in the last bit (suture_engine.arithmetic)"
+    )
+
+
 def _jsonable(value: Any) -> Any:
     if isinstance(value, bool | int | float | str) or value is None:
         return value
@@ -580,6 +594,9 @@ def replay_trace(
             topics=COMPARED_TOPICS,
         )
         ok, diff = result.ok, result.text
+        note = _arithmetic_note((extra or {}).get("arithmetic"))
+        if note:
+            diff = f"{diff.rstrip()}\n{note}" if diff else note
     if tmp_dir is not None:
         try:
             os.remove(out_path)
