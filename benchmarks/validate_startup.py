@@ -21,6 +21,9 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+ENV = {k: v for k, v in os.environ.items() if k != "PYTHONDONTWRITEBYTECODE"}
+"""The children's environment: Python writes and reuses its bytecode (.pyc), as in a
+user's shell. With PYTHONDONTWRITEBYTECODE set, every run compiles every module again."""
 
 
 def _time(cmd: list[str], runs: int) -> tuple[list[float], list[float]]:
@@ -29,7 +32,7 @@ def _time(cmd: list[str], runs: int) -> tuple[list[float], list[float]]:
     for _ in range(runs):
         before = resource.getrusage(resource.RUSAGE_CHILDREN)
         start = time.perf_counter()
-        proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=False)
+        proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, check=False, env=ENV)
         walls.append(time.perf_counter() - start)
         after = resource.getrusage(resource.RUSAGE_CHILDREN)
         cpus.append(after.ru_utime - before.ru_utime + after.ru_stime - before.ru_stime)
@@ -55,6 +58,8 @@ def main() -> None:
     ]
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"runs: {args.runs} each; load average {load:.2f} on {os.cpu_count()} CPUs")
+    if os.environ.get("PYTHONDONTWRITEBYTECODE"):
+        print("(PYTHONDONTWRITEBYTECODE is set here; cleared for the measured runs)")
     print(f"  {'command':<48} {'wall median [min-max]':<26} cpu median")
     for label, (walls, cpus) in rows:
         wall = f"{statistics.median(walls):.3f} s [{min(walls):.3f}-{max(walls):.3f}]"

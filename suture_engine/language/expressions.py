@@ -18,6 +18,7 @@ Examples: ``${mirror and -180 deg or 180 deg}``,
 from __future__ import annotations
 
 import ast
+import functools
 import math
 import operator
 import re
@@ -277,16 +278,9 @@ def evaluate(expression: str, names: Mapping[str, Any]) -> Any:
     """
     if len(expression) > MAX_EXPRESSION_CHARS:
         raise ExpressionError(f"longer than {MAX_EXPRESSION_CHARS} characters", expression[:40])
-    text, literals = _substitute_quantities(expression)
     try:
-        with warnings.catch_warnings():  # "invalid decimal literal" and the like: not ours
-            warnings.simplefilter("ignore", SyntaxWarning)
-            tree = ast.parse(text.strip(), mode="eval")
-    except (SyntaxError, ValueError, MemoryError) as exc:
-        raise ExpressionError(f"syntax error: {getattr(exc, 'msg', exc)}", expression) from None
-    scope = {**names, **literals}
-    try:
-        _check_static(tree, text.strip(), expression)
+        tree, literals = _compiled(expression)
+        scope = {**names, **dict(literals)}
         value = _Evaluator(expression, scope).visit(tree.body)
     except RecursionError:
         raise ExpressionError("expression nested too deeply", expression) from None
@@ -303,6 +297,25 @@ def evaluate(expression: str, names: Mapping[str, Any]) -> Any:
     if isinstance(value, Quantity) and not math.isfinite(value.value):
         raise ExpressionError(f"the result is not a finite number ({value.value})", expression)
     return value
+
+
+@functools.lru_cache(maxsize=4096)
+def _compiled(expression: str) -> tuple[ast.Expression, tuple[tuple[str, Quantity], ...]]:
+    """The expression's checked syntax tree and its unit literals, once per text.
+
+    A procedure's expressions repeat: every ``use:`` of a sub-procedure and every
+    validation pass evaluates the same texts again. The tree is only read afterwards.
+    Errors are not cached (each call raises anew).
+    """
+    text, literals = _substitute_quantities(expression)
+    try:
+        with warnings.catch_warnings():  # "invalid decimal literal" and the like: not ours
+            warnings.simplefilter("ignore", SyntaxWarning)
+            tree = ast.parse(text.strip(), mode="eval")
+    except (SyntaxError, ValueError, MemoryError) as exc:
+        raise ExpressionError(f"syntax error: {getattr(exc, 'msg', exc)}", expression) from None
+    _check_static(tree, text.strip(), expression)
+    return tree, tuple(literals.items())
 
 
 _ALLOWED_NODES: tuple[type[ast.AST], ...] = (
