@@ -146,3 +146,50 @@ def test_elementwise_functions_are_the_c_librarys() -> None:
     y = np.linspace(-1.0, 1.0, 201)
     assert arcsin(y).tolist() == [math.asin(v) for v in y.tolist()]
     assert float(sin(np.float64(0.5))) == math.sin(0.5)
+
+
+# numpy functions whose float64 loops differ by CPU (SVML or other SIMD code on AVX-512)
+_CPU_DEPENDENT = {
+    "sin", "cos", "tan", "arcsin", "arccos", "arctan", "arctan2", "exp", "exp2", "log",
+    "log2", "log10", "log1p", "expm1", "tanh", "sinh", "cosh", "power", "einsum", "hypot",
+    "cbrt",
+}  # fmt: skip
+
+# Where they may stay, and why: nothing here feeds a traced run's physics or commands,
+# except the hybrid force controller's tanh (numpy's own loop already differs from the C
+# library's on this machine; replacing it would change secure-knot.yaml's runs).
+_ALLOWED = {
+    "suture_engine/control/hybrid_force.py": {"tanh"},
+    "suture_engine/control/shared_experiment.py": {"sin", "cos"},  # benchmark signals
+    "suture_engine/control/tracking.py": {"sin", "cos"},  # benchmark reference circle
+    "suture_engine/robot/excitation.py": {"sin", "cos", "log"},  # offline identification
+    "suture_engine/robot/identification.py": {"sin", "cos"},  # offline identification
+    "suture_engine/suture/curves.py": {"sin", "cos", "arctan2"},  # hand-built test knots
+    "suture_engine/suture/topology.py": {"sin", "arccos"},  # the classifier (evaluation)
+    "suture_engine/suture/knot.py": {"einsum"},  # segment distances (evaluation, reports)
+    "suture_engine/trace/synthetic.py": {"sin", "cos"},  # synthetic test traces
+}
+
+
+def test_traced_code_calls_no_cpu_dependent_numpy_function() -> None:
+    import ast
+
+    root = Path(__file__).resolve().parent.parent
+    found: dict[str, set[str]] = {}
+    for top in ("backends", "skills", "suture_engine"):
+        for path in sorted((root / top).rglob("*.py")):
+            tree = ast.parse(path.read_text(encoding="utf-8"))
+            names = {
+                node.attr
+                for node in ast.walk(tree)
+                if isinstance(node, ast.Attribute)
+                and isinstance(node.value, ast.Name)
+                and node.value.id in ("np", "numpy")
+                and node.attr in _CPU_DEPENDENT
+            }
+            if names:
+                found[path.relative_to(root).as_posix()] = names
+    extra = {f: n - _ALLOWED.get(f, set()) for f, n in found.items()}
+    assert {f: n for f, n in extra.items() if n} == {}, (
+        "use suture_engine.arithmetic (row_dot, sin, cos, arcsin) or math in traced code"
+    )
