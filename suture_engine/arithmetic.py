@@ -107,9 +107,7 @@ def arithmetic_record() -> dict[str, str]:
 
 
 def pin_at_import() -> None:
-    """Pin once, at ``import suture_engine``, and remember the outcome for the trace."""
-    if "outcome" in _state:
-        return
+    """Pin at ``import suture_engine`` and remember the outcome for the trace."""
     outcome = pin_blas_kernel()
     _state["outcome"] = outcome
     core = os.environ.get("OPENBLAS_CORETYPE")

@@ -280,7 +280,8 @@ def evaluate(expression: str, names: Mapping[str, Any]) -> Any:
         raise ExpressionError(f"longer than {MAX_EXPRESSION_CHARS} characters", expression[:40])
     try:
         tree, literals = _compiled(expression)
-        scope = {**names, **dict(literals)}
+        scope = {**names}
+        scope.update(literals)
         value = _Evaluator(expression, scope).visit(tree.body)
     except RecursionError:
         raise ExpressionError("expression nested too deeply", expression) from None
