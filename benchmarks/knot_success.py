@@ -25,8 +25,11 @@ belief) says ``square`` AND the knot binds the stitch (``through_tissue``).
 ``--single`` measures one throw instead: ``knot-algorithm-N.yaml --set stitch=false`` on
 the stitched start (``pybullet-surgical-stitched`` unless ``--backend`` says otherwise);
 success is then ``succeeded``, a ``trefoil`` and ``through_tissue``. The rate is printed
-with its 95 % Wilson score interval (``suture_engine.report.sweep.wilson_interval``);
-every run's row goes to ``OUT/results.csv``. A square knot on a ``*-stitched`` backend
+with its 95 % Wilson score interval (``suture_engine.report.sweep.wilson_interval``),
+which counts every run as independent; ``paths`` beside it counts the distinct runs
+(runs whose states changed on the same ticks made the same motion: with
+``--no-perturb`` several seeds can be one run, see :func:`path_digest`). Every run's row
+goes to ``OUT/results.csv``. A square knot on a ``*-stitched`` backend
 (``--backend pybullet-surgical-stitched``) starts from the stitched start as well
 (``--set stitch=false``).
 
@@ -249,6 +252,9 @@ class Row(NamedTuple):
     last_fault: str = ""
     """The run's last fault (``step: reason``, from the summary's ``last_fault``): on a
     failed run, where and why it stopped."""
+    path: str = ""
+    """A digest of the run's transitions (each state entered and its tick; see
+    :func:`path_digest`): two runs with the same one changed state on the same ticks."""
 
 
 def make_jobs(
@@ -323,6 +329,29 @@ def job_sets(job: Job) -> list[str]:
     )
 
 
+def path_digest(trace: Path) -> str:
+    """A short digest of a trace's ``/transitions``: each destination state with its log
+    time [ns], in order ("" when the trace cannot be read).
+
+    The sensor noise reaches a procedure's motion through the steps that decide on a
+    measurement: a guarded move's stop, an invariant's lock. Unperturbed runs of
+    different seeds whose states changed on the same ticks therefore share their motion:
+    seeds 1, 7 and 10 of the main job send the same commands, to the bit, for 121 s
+    (docs/status.md). The number of distinct digests is how many runs the seeds made.
+    """
+    import hashlib
+
+    from suture_engine.trace.reader import TraceReader
+
+    h = hashlib.sha256()
+    try:
+        for m in TraceReader(trace).messages(["/transitions"]):
+            h.update(f"{m.data['dest']}@{m.log_time_ns};".encode())
+    except Exception:  # a missing or unreadable trace: no digest, the run counts alone
+        return ""
+    return h.hexdigest()[:12]
+
+
 def run_one(job: Job) -> Row:
     """Run one job in a worker; any exception becomes an ``error`` row (a failure)."""
     from suture_engine.runtime.run import run_procedure
@@ -353,7 +382,7 @@ def run_one(job: Job) -> Row:
     return Row(
         job.algorithm, job.run, job.seed, s.outcome, kt, ok,
         float(s.max_tension_N), float(s.sim_time_s), time.perf_counter() - start, *common, "",
-        fault,
+        fault, path_digest(Path(job.out_dir) / "trace.mcap"),
     )  # fmt: skip
 
 
@@ -368,6 +397,9 @@ class Tally(NamedTuple):
     high: float
     outcomes: dict[str, int]
     knots: dict[str, int]
+    paths: int
+    """Distinct runs among them: rows with the same non-empty ``path`` count once (the
+    Wilson interval counts every row as independent)."""
 
 
 def tally(rows: Sequence[Row]) -> list[Tally]:
@@ -384,6 +416,7 @@ def tally(rows: Sequence[Row]) -> list[Tally]:
                 alg, len(mine), k, k / len(mine), lo, hi,
                 dict(Counter(r.outcome for r in mine)),
                 dict(Counter(r.knot_type or "none" for r in mine)),
+                len({r.path or f"row {i}" for i, r in enumerate(mine)}),
             )
         )  # fmt: skip
     return out
@@ -440,8 +473,8 @@ def read_csv(path: Path) -> list[Row]:
         return []
     with path.open(newline="", encoding="utf-8") as fh:
         table = list(csv.reader(fh))
-    # a table written before the last_fault column reads with it empty
-    if not table or tuple(table[0]) not in (Row._fields, Row._fields[:-1]):
+    # a table written before the last_fault or path column reads with them empty
+    if not table or tuple(table[0]) not in (Row._fields, Row._fields[:-1], Row._fields[:-2]):
         raise ValueError(f"{path}: not a results table (header {table[:1]})")
     fields = tuple(table[0])
     rows = []
@@ -615,12 +648,12 @@ def main(argv: Sequence[str]) -> int:
     write_csv(rows, results)
     print(
         f"\n{'algorithm':>9s} {'runs':>5s} {'success':>8s} {'rate':>6s} "
-        f"{'95% Wilson':>15s}  outcomes / knots"
+        f"{'95% Wilson':>15s} {'paths':>5s}  outcomes / knots"
     )
     for t in tally(rows):
         print(
             f"{t.algorithm:9d} {t.runs:5d} {t.successes:8d} {t.rate:6.0%} "
-            f"[{t.low:5.0%}, {t.high:5.0%}]  {t.outcomes} / {t.knots}"
+            f"[{t.low:5.0%}, {t.high:5.0%}] {t.paths:5d}  {t.outcomes} / {t.knots}"
         )
     for alg, steps in stops(rows).items():
         print(f"algorithm {alg}, where the failed runs stopped: {steps}")

@@ -243,7 +243,7 @@ def test_a_table_written_before_the_last_fault_column_reads_with_it_empty(
     tmp_path: Path,
 ) -> None:
     path = tmp_path / "results.csv"
-    header = ",".join(ks.Row._fields[:-1])
+    header = ",".join(ks.Row._fields[:-2])  # without last_fault (and path)
     path.write_text(header + "\n2,3,1695199924,failed,unknot,False,1.59,85.35,137.5,1.0,1.0,0.0,\n")
     (row,) = ks.read_csv(path)
     assert (row.run, row.outcome, row.last_fault) == (3, "failed", "")
@@ -309,3 +309,50 @@ def test_runs_on_the_stitched_start_skip_the_stitch_and_others_make_it(
 ) -> None:
     job = ks.Job(2, 0, 5, ks.Perturbation(), {}, backend, "x", 10.0, single)
     assert ks.job_sets(job) == sets
+
+
+def _trace(path: Path, *, seed: int, event_period_s: float) -> Path:
+    from suture_engine.trace.synthetic import synthetic_messages, synthetic_meta
+    from suture_engine.trace.writer import TraceWriter
+
+    with TraceWriter(path, synthetic_meta(seed=seed)) as writer:
+        for topic, t_ns, msg in synthetic_messages(2.0, seed=seed, event_period_s=event_period_s):
+            writer.write(topic, t_ns, msg)
+    return path
+
+
+def test_the_path_digest_follows_the_transitions_not_the_noise(tmp_path: Path) -> None:
+    """Two traces whose measurements differ (another noise seed) but whose states changed
+    on the same ticks have one digest; a transition one step earlier changes it; an
+    unreadable trace has none."""
+    a = ks.path_digest(_trace(tmp_path / "a.mcap", seed=1, event_period_s=0.5))
+    b = ks.path_digest(_trace(tmp_path / "b.mcap", seed=2, event_period_s=0.5))
+    c = ks.path_digest(_trace(tmp_path / "c.mcap", seed=1, event_period_s=0.499))
+    assert a and a == b
+    assert c and c != a
+    assert ks.path_digest(tmp_path / "missing.mcap") == ""
+
+
+def test_the_tally_counts_runs_of_one_path_once() -> None:
+    """Seeds whose runs share a path are one run for ``paths``; rows without a path
+    (a run that raised, an older table) each count alone. The rate still counts rows."""
+    rows = [
+        _row(2, True)._replace(path="aaa"),
+        _row(2, True)._replace(path="aaa"),
+        _row(2, False, "failed")._replace(path="bbb"),
+        _row(2, False, "failed"),
+        _row(2, False, "failed"),
+    ]
+    (t,) = ks.tally(rows)
+    assert (t.runs, t.successes, t.paths) == (5, 2, 4)
+
+
+def test_a_table_written_before_the_path_column_reads_with_it_empty(tmp_path: Path) -> None:
+    path = tmp_path / "results.csv"
+    rows = [_row(2, True)._replace(last_fault="x: y")]
+    ks.write_csv(rows, path)
+    lines = path.read_text().splitlines()
+    cut = [",".join(line.split(",")[:-1]) for line in lines]  # drop the path column
+    path.write_text("\n".join(cut) + "\n")
+    (row,) = ks.read_csv(path)
+    assert (row.last_fault, row.path) == ("x: y", "")
