@@ -333,21 +333,26 @@ def path_digest(trace: Path) -> str:
     """A short digest of a trace's ``/transitions``: each destination state with its log
     time [ns], in order ("" when the trace cannot be read).
 
-    The sensor noise reaches a procedure's motion through the steps that decide on a
-    measurement: a guarded move's stop, an invariant's lock. Unperturbed runs of
-    different seeds whose states changed on the same ticks therefore share their motion:
-    seeds 1, 7 and 10 of the main job send the same commands, to the bit, for 121 s
-    (docs/status.md). The number of distinct digests is how many runs the seeds made.
+    In the knot procedures (position control, no force loop) the sensor noise reaches
+    the motion only through the steps that decide on a measurement: a guarded move's
+    stop, an invariant's lock. Unperturbed runs of different seeds whose states changed
+    on the same ticks then share their motion: seeds 1, 7 and 10 of the main job send
+    the same commands, to the bit, at 110 s (docs/status.md). The number of distinct
+    digests is how many runs the seeds made. (A procedure with a force loop, such as
+    ``tension-regulate``, feeds the noise to every tick: there the count is a lower
+    bound.)
     """
     import hashlib
 
+    from suture_engine.trace.channels import TRANSITIONS
+    from suture_engine.trace.errors import TraceError
     from suture_engine.trace.reader import TraceReader
 
     h = hashlib.sha256()
     try:
-        for m in TraceReader(trace).messages(["/transitions"]):
+        for m in TraceReader(trace).messages([TRANSITIONS]):
             h.update(f"{m.data['dest']}@{m.log_time_ns};".encode())
-    except Exception:  # a missing or unreadable trace: no digest, the run counts alone
+    except TraceError:  # a missing or unreadable trace: no digest, the run counts alone
         return ""
     return h.hexdigest()[:12]
 
