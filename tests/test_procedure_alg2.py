@@ -775,3 +775,69 @@ def test_a_perturbed_throw_that_tied_nothing_is_caught_by_its_tug(tmp_path: Path
     assert faults[-1]["detail"].startswith("skill-failure:tension 0.30 N not reached within")
     assert summary["knot"]["type"] == "unknot"
     assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
+
+
+HELD_TUG_TIED_MOST_MM = 28.0
+"""Held-loop variant: the most tug travel before the strand went taut on a first throw
+that tied (one seed of each distinct run of the main job: 22.3-28.0 mm) [mm]."""
+HELD_TUG_UNTIED_LEAST_MM = 40.0
+"""... and the throws that tied nothing did not go taut within 40 mm (seeds 2, 12, 14)."""
+HELD_TAKE_UP_TIED_MM = 6.7
+"""Held-loop variant, loop 31 mm up: the mirrored take-up drew taut after 6.7 mm on the
+throw that tied the square (seed 4) [mm] ..."""
+HELD_TAKE_UP_MISSED_MM = 10.8
+"""... and after 10.8 mm on the one that tied no second knot (seed 13) [mm]."""
+HELD_CINCH_TIED_PEAK_N = 0.28
+"""The stitcher's estimate peaked at 0.28 N in the cinch that tied the square (seed 4),
+under the 0.3 N guard of the loose variant [N]."""
+
+
+@pytest.mark.parametrize("hold", [False, True])
+def test_the_held_loop_variant_is_opt_in_and_laid_out_from_its_measurements(hold: bool) -> None:
+    """``--set hold_loop=true``: the first throw keeps the hook out through its cinch
+    (unguarded: the strand rests on the hook) and retracts it after, then tugs the knot
+    down with a bound between the tied and untied throws' travel; the mirrored loop lies
+    31 mm up the stem, its take-up window and cinch guard lie between what the tied and the
+    missed throws measured. Off (the default), the layout is the one the loose first knot
+    was measured with."""
+    from suture_engine.runtime.plan import compile_procedure
+
+    proc: Any = load_procedure(
+        ROOT / "procedures" / "square-knot.yaml", params={"stitch": False, "hold_loop": hold}
+    )
+    plan = compile_procedure(proc)
+    first = proc.states["simple-knot"].use
+    second = proc.states["mirrored-knot"].use
+    assert plan.steps["simple-knot.retract-hook"].enabled is not hold
+    assert plan.steps["simple-knot.release-hook"].enabled is hold
+    assert plan.steps["simple-knot.tug"].enabled is hold
+    cinch = first.states["cinch"].params
+    assert (cinch.until_tension is None) is hold
+    mirrored_cinch = second.states["cinch"].params
+    take_up = second.states["take-up"].params
+    height = second.states["over-hook"].params.height
+    if hold:
+        tug = first.states["tug"].params
+        assert HELD_TUG_TIED_MOST_MM * 1e-3 < tug.taut_within < HELD_TUG_UNTIED_LEAST_MM * 1e-3
+        assert height == pytest.approx(31e-3)
+        assert HELD_TAKE_UP_TIED_MM * 1e-3 < take_up.taut_within < HELD_TAKE_UP_MISSED_MM * 1e-3
+        assert mirrored_cinch.until_tension < HELD_CINCH_TIED_PEAK_N
+    else:
+        assert height == pytest.approx(25e-3)
+        assert take_up.taut_within == pytest.approx(6.5e-3)
+        assert mirrored_cinch.until_tension == pytest.approx(0.3)
+
+
+@pytest.mark.slow
+def test_the_held_loop_variant_ties_a_square_on_seed_4(tmp_path: Path) -> None:
+    """The held-loop variant on seed 4: the first throw ties a trefoil, the tug draws it
+    down, and the mirrored throw (loop 31 mm up, 0.2 N cinch guard) ties a square that
+    binds the stitch and lies square, the true tension under the limit (measured 955 s
+    wall, ending ``succeeded`` at 172.1 s simulated)."""
+    summary, knot = _run_on_thread(
+        tmp_path, "square-knot.yaml", 4, ["stitch=false", "hold_loop=true"], 220
+    )
+    assert summary["outcome"] == "succeeded"
+    assert knot["type"] == "square" and knot["determinant"] == 9 and knot["v3"] == 0
+    assert knot["through_tissue"] and knot["lay"] == "square" and knot["post_straight"]
+    assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
