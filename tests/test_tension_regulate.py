@@ -247,6 +247,8 @@ def test_a_small_ramp_lead_keeps_the_slack_pull_from_winding_up() -> None:
     assert peaks[2.0] < 10.0
 
 
+# slow: two thread runs (32 s of the CI suite under load); `pytest -m slow` runs it
+@pytest.mark.slow
 def test_stiction_compensation_reaches_a_light_tension_sooner_and_overshoots_less() -> None:
     """1.5 N, about the static-friction window of the first joint at the tip: without the
     compensation the joints stick and the integral must cross that window first (slow,
