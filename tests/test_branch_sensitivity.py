@@ -1,0 +1,182 @@
+"""benchmarks/branch_sensitivity.py: a branch that changes nothing ends as a straight run
+does; a changed step moves as changed; variants that cannot apply are refused by name.
+
+Oracles: a straight ``run_procedure`` of the same seed (another code path: trace recorder,
+no fork) for the unchanged branch, to the bit; the changed target's own length for the
+changed branch, measured on the simulator's true tool tips.
+"""
+
+from __future__ import annotations
+
+import importlib.util
+import math
+import shutil
+import sys
+from pathlib import Path
+from types import ModuleType
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _load() -> ModuleType:
+    spec = importlib.util.spec_from_file_location(
+        "branch_sensitivity_bench", ROOT / "benchmarks" / "branch_sensitivity.py"
+    )
+    assert spec is not None and spec.loader is not None
+    mod = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = mod
+    spec.loader.exec_module(mod)
+    return mod
+
+
+bs = _load()
+
+PROCEDURE = """\
+procedure: two-moves
+version: "1"
+description: The stitcher moves twice, holding after each move.
+scene: scene.yaml
+roles: {stitcher: endobot_1, grasper: endobot_2}
+initial: move-1
+states:
+  move-1:
+    skill: move-to
+    with: {robot: stitcher, relative_to: stitcher, target: [10 mm, 0 mm, 0 mm], speed: 10 mm/s,
+           tolerance: 0.5 mm}
+    timeout: 10 s
+    "on": {done: hold-1, failed: {retry: 0, then: abort}}
+  hold-1:
+    skill: hold
+    with: {robot: stitcher, duration: 0.3 s}
+    "on": {done: move-2, failed: {retry: 0, then: abort}}
+  move-2:
+    skill: move-to
+    with: {robot: stitcher, relative_to: stitcher, target: [0 mm, 10 mm, 0 mm], speed: 10 mm/s,
+           tolerance: 0.5 mm}
+    timeout: 10 s
+    "on": {done: hold-2, failed: {retry: 0, then: abort}}
+  hold-2:
+    skill: hold
+    with: {robot: stitcher, duration: 0.3 s}
+    "on": {done: finished, failed: {retry: 0, then: abort}}
+  finished: {outcome: succeeded}
+"""
+
+
+@pytest.fixture(scope="module")
+def procedure(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    work = tmp_path_factory.mktemp("branch")
+    shutil.copy(ROOT / "procedures" / "scenes" / "bench.yaml", work / "scene.yaml")
+    path = work / "procedure.yaml"
+    path.write_text(PROCEDURE)
+    return path
+
+
+@pytest.fixture(scope="module")
+def branches(procedure: Path) -> list[dict]:  # type: ignore[type-arg]
+    variants = [
+        bs.parse_variant("up: move-2.target+=[0 mm, 0 mm, 5 mm]"),
+        bs.parse_variant("late: move-1.speed=5 mm/s"),  # move-1 ran before the branch point
+    ]
+    return bs.run_branches(
+        procedure, at="hold-1", variants=variants, seed=3, backend="pybullet", max_time_s=20.0
+    )
+
+
+def test_the_unchanged_branch_ends_as_a_straight_run_does(
+    procedure: Path,
+    branches: list[dict],
+    tmp_path: Path,  # type: ignore[type-arg]
+) -> None:
+    from suture_engine.runtime.run import run_procedure
+
+    straight = run_procedure(procedure, backend="pybullet", seed=3, out=tmp_path, max_time_s=20.0)
+    unchanged = branches[0]
+    assert unchanged["variant"] == bs.AS_WRITTEN
+    assert unchanged["outcome"] == straight.summary.outcome == "succeeded"
+    assert unchanged["final_state"] == straight.summary.final_state
+    assert unchanged["ticks"] == straight.summary.ticks
+    # the largest tension estimate of the whole run, to the bit: the same sensor noise,
+    # the same motion, before and after the fork
+    assert unchanged["max_tension_N"] == straight.summary.max_tension_N
+    assert [s["step"] for s in unchanged["steps"]] == ["hold-1", "move-2", "hold-2"]
+    assert unchanged["branch_s"] > 0.5  # after move-1's ~1 s of motion
+
+
+def test_a_changed_step_moves_as_changed(branches: list[dict]) -> None:  # type: ignore[type-arg]
+    def move_2(result: dict) -> float:  # type: ignore[type-arg]
+        (step,) = [s for s in result["steps"] if s["step"] == "move-2"]
+        return float(step["travel_mm"]["endobot_1"])
+
+    unchanged, up = branches[0], branches[1]
+    assert up["variant"] == "up" and up["outcome"] == "succeeded"
+    assert up["changes"] == [
+        {"step": "move-2", "field": "target", "value": [0.0, 0.0, 0.005], "add": True}
+    ]
+    # true tool-tip travel against the commanded offsets (0.5 mm arrival tolerance)
+    assert move_2(unchanged) == pytest.approx(10.0, abs=0.6)
+    assert move_2(up) == pytest.approx(math.hypot(10.0, 5.0), abs=0.6)
+    # the first move is shared: it ran once, before the branch
+    assert up["branch_s"] == unchanged["branch_s"]
+
+
+def test_a_step_that_already_ran_is_refused(branches: list[dict]) -> None:  # type: ignore[type-arg]
+    late = branches[2]
+    assert late["variant"] == "late"
+    assert "move-1" in late["error"] and "ran before the branch point" in late["error"]
+
+
+@pytest.mark.parametrize(
+    ("spec", "message"),
+    [
+        ("no-colon move-2.speed=1 mm/s", "expected 'NAME: STEP.FIELD=VALUE"),
+        ("x: move-2speed", "expected STEP.FIELD=VALUE"),
+        ("x:", "no change given"),
+        ("as-written: move-2.speed=1 mm/s", "changes nothing"),
+        ("x: move-2.speed=fast mm", "expected a quantity"),
+    ],
+)
+def test_malformed_variants_are_refused(spec: str, message: str) -> None:
+    with pytest.raises(bs.VariantError, match=message):
+        bs.parse_variant(spec)
+
+
+@pytest.mark.parametrize(
+    ("spec", "message"),
+    [
+        ("x: move-3.speed=1 mm/s", "no step 'move-3'"),
+        ("x: move-2.sped=1 mm/s", "no field 'sped'"),
+        ("x: move-2.speed=-1 mm/s", "move-2: .*speed"),
+        ("x: move-2.speed+=[1 mm, 2 mm]", "cannot add"),
+    ],
+)
+def test_variants_that_cannot_apply_are_refused_before_the_run(
+    procedure: Path, spec: str, message: str
+) -> None:
+    with pytest.raises(bs.VariantError, match=message):
+        bs.run_branches(
+            procedure, at="hold-1", variants=[bs.parse_variant(spec)], backend="pybullet"
+        )
+
+
+def test_a_branch_point_never_reached_is_an_error(procedure: Path) -> None:
+    with pytest.raises(bs.VariantError, match="no step 'nowhere'"):
+        bs.run_branches(procedure, at="nowhere", variants=[], backend="pybullet")
+    with pytest.raises(RuntimeError, match="before step 'move-2'"):
+        bs.run_branches(procedure, at="move-2", variants=[], backend="pybullet", max_time_s=0.2)
+
+
+def test_the_table_and_the_command_line(
+    procedure: Path,
+    branches: list[dict],  # type: ignore[type-arg]
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    table = bs.format_results(branches).splitlines()
+    assert table[0].startswith("as-written: succeeded (finished)")
+    assert any(line.startswith("up: succeeded") for line in table)
+    assert any(line.startswith("late: --variant 'late'") for line in table)
+    assert sum("move-2" in line and "travel endobot_1" in line for line in table) == 2
+    assert bs.main([str(procedure), "--at", "hold-1", "--variant", "x: y"]) == 2
+    assert "error: --variant 'x: y'" in capsys.readouterr().err
