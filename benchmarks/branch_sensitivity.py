@@ -257,15 +257,13 @@ class BranchRecorder(Recorder):
 
 
 def _knot(truth: Mapping[str, Any]) -> str | None:
-    from suture_engine.suture.geometry import knot_summary
+    """The ground-truth thread's knot type (None: no thread, or a degenerate one)."""
+    from suture_engine.suture.topology import InvalidCenterline, classify_knot
 
     try:
-        line = truth["centerline"]
-    except KeyError:
+        return str(classify_knot(np.asarray(truth["centerline"])).type)
+    except (KeyError, InvalidCenterline):
         return None
-    return str(
-        knot_summary(np.asarray(line), tissue_point=[0, 0, 0], tissue_normal=[0, 0, 1])["type"]
-    )
 
 
 def run_branches(

@@ -180,3 +180,12 @@ def test_the_table_and_the_command_line(
     assert sum("move-2" in line and "travel endobot_1" in line for line in table) == 2
     assert bs.main([str(procedure), "--at", "hold-1", "--variant", "x: y"]) == 2
     assert "error: --variant 'x: y'" in capsys.readouterr().err
+
+
+def test_the_per_step_knot_is_the_threads_topology() -> None:
+    from suture_engine.suture.curves import trefoil
+
+    line = trefoil(120)
+    assert bs._knot({"centerline": line}) == "trefoil"
+    assert bs._knot({"centerline": line[:, [0, 1]] * [1.0, 0.0]}) is None  # degenerate
+    assert bs._knot({}) is None  # the robots alone: no thread
