@@ -12,7 +12,7 @@ from typing import Any
 
 from suture_engine.errors import SutureError
 
-__all__ = ["ENTRY_POINT_GROUP", "UnknownBackend", "available", "create", "register"]
+__all__ = ["ENTRY_POINT_GROUP", "UnknownBackend", "available", "create", "is_known", "register"]
 
 ENTRY_POINT_GROUP = "suture_engine.backends"
 
@@ -56,6 +56,12 @@ def _entry_points() -> dict[str, Any]:
 def available() -> list[str]:
     """Sorted names of built-in, registered and entry-point backends."""
     return sorted(set(_BUILTIN) | set(_REGISTERED) | set(_entry_points()))
+
+
+def is_known(name: str) -> bool:
+    """Whether ``name`` names a backend. Entry points are scanned (tens of milliseconds)
+    only for a name that is neither built in nor registered."""
+    return name in _BUILTIN or name in _REGISTERED or name in _entry_points()
 
 
 def _load(target: str) -> Callable[..., Any]:

@@ -31,7 +31,7 @@ class SkillParams(BaseModel):
     docstring gives its unit in brackets.
     """
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, defer_build=True)
 
 
 class SkillNotAvailable(SutureError):

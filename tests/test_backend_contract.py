@@ -199,6 +199,22 @@ def test_unknown_backend_suggests_names() -> None:
     assert {"pybullet", "replay", "ideal"} <= set(registry.available())
 
 
+def test_known_names_need_no_entry_point_scan(monkeypatch: pytest.MonkeyPatch) -> None:
+    scans: list[str] = []
+
+    def fake_entry_points(group: str) -> list[Any]:
+        scans.append(group)
+        return [SimpleNamespace(name="third-party")]
+
+    monkeypatch.setattr(registry, "entry_points", fake_entry_points)
+    assert registry.is_known("pybullet") and registry.is_known("ideal")
+    assert scans == []
+    assert registry.is_known("third-party")
+    assert not registry.is_known("pybulet")
+    assert scans == [registry.ENTRY_POINT_GROUP] * 2
+    assert "third-party" in registry.available()
+
+
 def test_pybullet_force_noise_and_delay_follow_the_scene_and_the_seed() -> None:
     noisy = SimpleNamespace(
         **vars(SCENE), physics=SimpleNamespace(force_noise=0.05, measurement_delay=0.003)

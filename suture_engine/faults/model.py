@@ -141,7 +141,7 @@ def _check_range(kind: str, value: float) -> None:
 class Fault(BaseModel):
     """One fault to inject (see the module docstring for kinds, units and triggers)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, defer_build=True)
 
     kind: FaultKind
     """What goes wrong: noise, bias, delay, dropout, grasp-slip, snag, joint-lock,

@@ -240,13 +240,13 @@ def _backend(ctx: _Context, head: _Head, source: SourceMap, names: Mapping[str, 
     against the registered backends."""
     if head.backend is None:
         return None
-    from backends.registry import available
+    from backends.registry import available, is_known
 
     name = _resolve(ctx, head.backend, source, ("backend",), names)
     if name is _INVALID:  # a bad expression, already reported
         return None
-    registered = available()
-    if not isinstance(name, str) or name not in registered:
+    if not isinstance(name, str) or not is_known(name):
+        registered = available()
         ctx.problems.append(
             source.problem(
                 "unknown-backend",

@@ -55,7 +55,7 @@ OUTCOMES = ("succeeded", "failed", "aborted")
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True, defer_build=True)
 
 
 class ParamSpec(_Model):

@@ -86,7 +86,7 @@ ToolType = Literal["grasper", "hook-grasper", "bent-tip-grasper", "stitcher"]
 
 
 class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, defer_build=True)
 
 
 class Pose(_Model):

@@ -101,7 +101,7 @@ def _seconds(value: Any) -> float:
 
 
 class _Event(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, defer_build=True)
 
     at: float | None = None
     when: str | None = None
@@ -161,7 +161,7 @@ class _Event(BaseModel):
 
 
 class _File(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, defer_build=True)
 
     events: list[_Event]
 
