@@ -30,7 +30,7 @@ POSIX only (``os.fork``); the backend must run in-process (PyBullet ``DIRECT``).
 Usage::
 
     python benchmarks/branch_sensitivity.py procedures/square-knot.yaml --seed 0 \\
-        --set hold_loop=true --at mirrored-knot.extend-hook \\
+        --at mirrored-knot.extend-hook [--set NAME=VALUE] \\
         --variant "h28: mirrored-knot.over-hook.height=28 mm" \\
         [--variant ...] [--backend NAME] [--max-time 230] [--workers 2] [--json FILE]
 """

@@ -813,14 +813,14 @@ def test_the_square_knot_holds_the_loop_by_default() -> None:
     )
     single: Any = load_procedure(ROOT / "procedures" / "knot-algorithm-2.yaml")
     assert not compile_procedure(single).steps["release-hook"].enabled
-    # the tug is a check: with the checks off (no thread to draw on the robots-only
-    # backend) it only draws the strand on, and cannot fail for want of tension
+    # the tug is a check: with the checks off (no strand to draw on the robots-only
+    # backend) it is left out
     tug = square.states["simple-knot"].use.states["tug"].params
     assert tug.taut_within == pytest.approx(33e-3)
     unchecked: Any = load_procedure(
         ROOT / "procedures" / "square-knot.yaml", params={"check_throw": False}
     )
-    assert unchecked.states["simple-knot"].use.states["tug"].params.taut_within is None
+    assert not compile_procedure(unchecked).steps["simple-knot.tug"].enabled
 
 
 @pytest.mark.parametrize("hold", [False, True])
