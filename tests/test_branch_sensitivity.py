@@ -8,30 +8,17 @@ changed branch, measured on the simulator's true tool tips.
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import shutil
-import sys
 from pathlib import Path
-from types import ModuleType
 
 import pytest
+from benchmark_modules import load_benchmark
 
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def _load() -> ModuleType:
-    spec = importlib.util.spec_from_file_location(
-        "branch_sensitivity_bench", ROOT / "benchmarks" / "branch_sensitivity.py"
-    )
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-bs = _load()
+bs = load_benchmark("branch_sensitivity")
 
 PROCEDURE = """\
 procedure: two-moves

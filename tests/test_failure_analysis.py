@@ -8,31 +8,13 @@ is a granny, with it a square knot.
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-from types import ModuleType
-
 import pytest
+from benchmark_modules import load_benchmark
 
 from suture_engine.suture.knot import knot_lay
 from suture_engine.suture.topology import classify_knot
 
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def _load() -> ModuleType:
-    spec = importlib.util.spec_from_file_location(
-        "failure_analysis_bench", ROOT / "benchmarks" / "failure_analysis.py"
-    )
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-fa = _load()
+fa = load_benchmark("failure_analysis")
 
 
 def test_the_hand_built_lays_are_what_they_claim() -> None:

@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
 from dataclasses import replace
 from pathlib import Path
-from types import ModuleType
 
 import numpy as np
 import pytest
+from benchmark_modules import load_benchmark
 
 from suture_engine.faults.campaign import (
     OUTCOME_CLASSES,
@@ -232,19 +230,8 @@ def test_a_target_passes_its_parameter_overrides_to_the_run(tmp_path: Path) -> N
     assert slow.sim_time_s - fast.sim_time_s == pytest.approx(0.18, abs=0.005)
 
 
-def _load_benchmark() -> ModuleType:
-    spec = importlib.util.spec_from_file_location(
-        "fault_campaign_bench", ROOT / "benchmarks" / "fault_campaign.py"
-    )
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
 def test_the_benchmark_sets_each_procedure_its_limit_from_its_baseline() -> None:
-    bench = _load_benchmark()
+    bench = load_benchmark("fault_campaign")
     procs = [bench.procedure_path(n) for n in ("stitch", "square-knot.yaml")]
     assert [p.name for p in procs] == ["stitch.yaml", "square-knot.yaml"]
     assert all(p.is_file() for p in procs)

@@ -7,31 +7,15 @@ The physics runs themselves are the benchmark's business (too long for a test).
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import numpy as np
 import pytest
+from benchmark_modules import load_benchmark
 
-ROOT = Path(__file__).resolve().parent.parent
-
-
-def _load() -> ModuleType:
-    spec = importlib.util.spec_from_file_location(
-        "knot_success_bench", ROOT / "benchmarks" / "knot_success.py"
-    )
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-ks = _load()
+ks = load_benchmark("knot_success")
 
 
 def test_perturbation_draws_follow_the_stated_distributions() -> None:
