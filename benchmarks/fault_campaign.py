@@ -24,12 +24,19 @@ Default procedures: ``stitch``, ``square-knot``, ``shared-control-line`` and
 Grasp slip and snag need the thread: with ``--surgical N`` they run N times each
 on ``pybullet-surgical`` (when that backend has the ``inject_grasp_slip`` and
 ``inject_snag`` hooks) on ``stitch.yaml``, with ``--surgical-max-time`` (the
-stitch takes about 17.4 s simulated there).
+stitch takes about 17.4 s simulated there). ``--surgical-kinds`` widens the thread
+runs to other kinds (``all``: every kind, so the sensor, joint and physics faults
+are also measured against the thread's true tension); ``--surgical-procedure``,
+``--surgical-backend``, ``--surgical-set`` and ``--surgical-window`` run them on
+another procedure, for example one throw of algorithm 2 on the stitched start.
 
 Usage:
     nice python benchmarks/fault_campaign.py [--runs 200] [--backend pybullet]
         [--procedures stitch square-knot ...] [--workers 1] [--seed 0]
-        [--surgical 0] [--out DIR] [--keep-traces] [--csv FILE]
+        [--surgical 0] [--surgical-kinds grasp-slip snag | all]
+        [--surgical-procedure stitch] [--surgical-backend pybullet-surgical]
+        [--surgical-set NAME=VALUE ...] [--surgical-window 10]
+        [--out DIR] [--keep-traces] [--csv FILE]
 
 Rows are appended to the CSV as runs end: an interrupted campaign resumes where it
 stopped (same arguments, the CSV of the first start).
@@ -147,16 +154,35 @@ def targets(
     return out
 
 
-def surgical_target(surgical_max_time: float) -> Target | None:
-    """The stitch on ``pybullet-surgical`` with the thread faults, if it has the hooks."""
+def surgical_target(
+    surgical_max_time: float,
+    kinds: tuple[str, ...] = THREAD_KINDS,
+    procedure: Path = STITCH,
+    backend: str = "pybullet-surgical",
+    sets: tuple[str, ...] = (),
+    window_s: float = 10.0,
+) -> Target | None:
+    """``procedure`` on a thread backend with ``kinds`` (by default the stitch with the
+    thread faults), if the backend has the thread-fault hooks.
+
+    Args:
+        surgical_max_time: each run's simulated time limit [s].
+        kinds: the fault kinds, taken in turn.
+        procedure: the procedure file.
+        backend: a backend with a thread (``pybullet-surgical`` or a variant).
+        sets: ``name=value`` overrides of the procedure's parameters.
+        window_s: timed faults start in ``[0, window_s]`` [s].
+    """
     from backends.pybullet.backend import SurgicalPyBulletBackend
 
+    if not backend.startswith("pybullet-surgical"):
+        raise SystemExit(f"--surgical-backend must have a thread (pybullet-surgical*): {backend}")
     hooks = all(hasattr(SurgicalPyBulletBackend, h) for h in ("inject_grasp_slip", "inject_snag"))
     if not hooks:
-        print("pybullet-surgical has no inject_grasp_slip / inject_snag: no thread faults")
+        print(f"{backend} has no inject_grasp_slip / inject_snag: no thread faults")
         return None
-    steps, _ = plan_steps(STITCH)
-    return Target(STITCH, "pybullet-surgical", THREAD_KINDS, steps, ROBOTS, 10.0, surgical_max_time)
+    steps, _ = plan_steps(procedure, sets)
+    return Target(procedure, backend, kinds, steps, ROBOTS, window_s, surgical_max_time, sets)
 
 
 def main() -> None:
@@ -190,7 +216,39 @@ def main() -> None:
     )
     ap.add_argument("--workers", type=int, default=1)
     ap.add_argument("--seed", type=int, default=0, help="base seed of the fault draws")
-    ap.add_argument("--surgical", type=int, default=0, help="runs per thread fault kind")
+    ap.add_argument(
+        "--surgical", type=int, default=0, help="thread runs per kind of --surgical-kinds"
+    )
+    ap.add_argument(
+        "--surgical-kinds",
+        nargs="+",
+        default=list(THREAD_KINDS),
+        choices=[*FAULT_KINDS, "all"],
+        help="fault kinds of the thread runs (default: grasp-slip snag; all: every kind)",
+    )
+    ap.add_argument(
+        "--surgical-procedure",
+        default="stitch",
+        help="procedure of the thread runs (a name in procedures/ or a path)",
+    )
+    ap.add_argument(
+        "--surgical-backend",
+        default="pybullet-surgical",
+        help="backend of the thread runs (one with a thread)",
+    )
+    ap.add_argument(
+        "--surgical-set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="parameter override of the thread runs' procedure (repeatable)",
+    )
+    ap.add_argument(
+        "--surgical-window",
+        type=float,
+        default=10.0,
+        help="timed faults of the thread runs start in [0, this] [s]",
+    )
     ap.add_argument("--out", type=Path, default=None, help="run folders (default: a temp dir)")
     ap.add_argument("--keep-traces", action="store_true", help="keep every run's folder")
     ap.add_argument(
@@ -241,11 +299,22 @@ def main() -> None:
             )
         jobs += make_jobs(plan, args.runs, args.seed, out / args.backend)
     if args.surgical > 0:
-        surgical = surgical_target(args.surgical_max_time)
+        kinds = tuple(FAULT_KINDS) if "all" in args.surgical_kinds else tuple(args.surgical_kinds)
+        surgical_proc = procedure_path(args.surgical_procedure)
+        if not surgical_proc.is_file():
+            raise SystemExit(f"no such procedure: {surgical_proc}")
+        surgical = surgical_target(
+            args.surgical_max_time,
+            kinds,
+            surgical_proc,
+            args.surgical_backend,
+            tuple(args.surgical_set),
+            args.surgical_window,
+        )
         if surgical is not None:
             batch = make_jobs(
                 [surgical],
-                args.surgical * len(THREAD_KINDS),
+                args.surgical * len(surgical.kinds),
                 args.seed + 1000,
                 out / surgical.backend,
             )

@@ -256,6 +256,32 @@ def test_the_benchmark_sets_each_procedure_its_limit_from_its_baseline() -> None
     assert [t.max_time_s for t in fixed] == [40.0, 40.0]
 
 
+def test_the_thread_runs_take_any_kinds_procedure_and_overrides() -> None:
+    bench = load_benchmark("fault_campaign")
+    default = bench.surgical_target(40.0)
+    assert default is not None
+    assert (default.procedure.name, default.backend, default.kinds) == (
+        "stitch.yaml",
+        "pybullet-surgical",
+        ("grasp-slip", "snag"),
+    )
+    knot = bench.surgical_target(
+        120.0,
+        tuple(FAULT_KINDS),
+        bench.procedure_path("knot-algorithm-2"),
+        "pybullet-surgical-stitched",
+        ("stitch=false",),
+        60.0,
+    )
+    assert knot is not None
+    assert knot.kinds == tuple(FAULT_KINDS) and knot.sets == ("stitch=false",)
+    assert (knot.horizon_s, knot.max_time_s) == (60.0, 120.0)
+    # state triggers can name the knot's steps, not only the stitch's
+    assert "cinch" in knot.steps and "cinch" not in default.steps
+    with pytest.raises(SystemExit, match="must have a thread"):
+        bench.surgical_target(40.0, backend="pybullet")
+
+
 def test_state_triggers_of_sub_procedure_steps_parse_and_match(tmp_path: Path) -> None:
     # the square knot's steps are qualified ("mirrored-knot.tighten"); the --fault syntax
     # takes no dotted name, so the campaign names the step by its own name, which the
