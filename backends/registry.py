@@ -49,8 +49,16 @@ def register(name: str, factory: Callable[..., Any]) -> None:
     _REGISTERED[name] = factory
 
 
+_SCANNED: dict[str, Any] | None = None
+"""The entry points of :data:`ENTRY_POINT_GROUP`, scanned once per process (a scan reads
+every installed package's metadata: tens of milliseconds)."""
+
+
 def _entry_points() -> dict[str, Any]:
-    return {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
+    global _SCANNED
+    if _SCANNED is None:
+        _SCANNED = {ep.name: ep for ep in entry_points(group=ENTRY_POINT_GROUP)}
+    return _SCANNED
 
 
 def available() -> list[str]:

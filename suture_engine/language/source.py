@@ -132,7 +132,8 @@ class _Builder:
         if isinstance(node, yaml.ScalarNode):
             if node.tag not in _SCALAR_TAGS:
                 raise self.fail("yaml-tag", f"tag {node.tag!r} is not allowed", node, path)
-            if node.tag == "tag:yaml.org,2002:timestamp":
+            if node.tag == "tag:yaml.org,2002:str" or node.tag == "tag:yaml.org,2002:timestamp":
+                # a string's value is its text (what the constructor would return)
                 return str(node.value)
             return _constructor.construct_object(node, deep=True)
         if isinstance(node, yaml.SequenceNode):

@@ -272,8 +272,26 @@ def _roles(proc: Procedure) -> list[Problem]:
     return out
 
 
-def _field_markers(info: Any) -> tuple[set[str], bool, str | None]:
+_FIELD_MARKERS: dict[int, tuple[Any, tuple[frozenset[str], bool, str | None]]] = {}
+""":func:`_field_markers` by the field's ``id`` (with the field, so the id stays its own)."""
+
+
+def _field_markers(info: Any) -> tuple[frozenset[str], bool, str | None]:
     """SceneRef kinds, whether a position, and the unit of a pydantic field.
+
+    A field's markers belong to its class, so they are worked out once per field and
+    process (a procedure's states share a few skills' fields).
+    """
+    cached = _FIELD_MARKERS.get(id(info))
+    if cached is not None and cached[0] is info:
+        return cached[1]
+    found = _read_field_markers(info)
+    _FIELD_MARKERS[id(info)] = (info, found)
+    return found
+
+
+def _read_field_markers(info: Any) -> tuple[frozenset[str], bool, str | None]:
+    """:func:`_field_markers` without the cache.
 
     Pydantic moves a top-level ``Annotated`` marker into ``info.metadata``; markers
     inside unions stay in the annotation.
@@ -286,7 +304,7 @@ def _field_markers(info: Any) -> tuple[set[str], bool, str | None]:
         if isinstance(meta, Unit):
             unit = meta.unit
             position = position or (meta.unit == "m" and info.annotation is not float)
-    return kinds, position, unit
+    return frozenset(kinds), position, unit
 
 
 def _unit(annotation: Any) -> str | None:
