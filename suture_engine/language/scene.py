@@ -122,9 +122,9 @@ class JointLimits(_Model):
 class RobotSpec(_Model):
     """One EndoBot: base pose, joint limits and the tool it carries."""
 
-    base: Pose = Pose()
+    base: Pose = Field(default_factory=Pose)
     """Base pose; the base origin is the RCM (incision point)."""
-    joint_limits: JointLimits = JointLimits()
+    joint_limits: JointLimits = Field(default_factory=JointLimits)
     """Joint limits."""
     tool: ToolType
     """The tool: ``grasper``, ``hook-grasper`` (flexible hook, 4.4.2),
@@ -274,7 +274,7 @@ class Physics(_Model):
     """Delay of the force measurement [s]; used by the force-gain check (7.41, 7.43)."""
     force_noise: Force = Field(default=0.0, ge=0.0)
     """Standard deviation of the base force sensor's noise [N]."""
-    force_plant: ForcePlant = ForcePlant()
+    force_plant: ForcePlant = Field(default_factory=ForcePlant)
     """The force-control plant."""
     seed: int = 0
     """Random seed."""
@@ -293,7 +293,7 @@ class Scene(_Model):
     """The tissue."""
     suture: Suture
     """The suture."""
-    physics: Physics = Physics()
+    physics: Physics = Field(default_factory=Physics)
     """Physics and sensor settings."""
     posts: dict[str, Post] = Field(default_factory=dict)
     """Rigid calibration posts by name, at known positions (see ``register``)."""
