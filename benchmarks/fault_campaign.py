@@ -353,6 +353,10 @@ def main() -> None:
     print(format_table(rows))
     print()
     print(format_table(rows, by="procedure"))
+    knots = knot_table(rows)
+    if knots:
+        print()
+        print(knots)
     crashes = [r for r in rows if r.outcome == "crash"]
     violations = sum(r.true_violations > 0 for r in rows)
     with_truth = sum(r.max_true_tension_N == r.max_true_tension_N for r in rows)
@@ -381,6 +385,10 @@ def report(csv_path: Path, out: Path | None) -> None:
     print(format_table(rows))
     print()
     print(format_table(rows, by="procedure"))
+    knots = knot_table(rows)
+    if knots:
+        print()
+        print(knots)
     print()
     crashes = [r for r in rows if r.outcome == "crash"]
     with_truth = sum(math.isfinite(r.max_true_tension_N) for r in rows)
@@ -394,6 +402,36 @@ def report(csv_path: Path, out: Path | None) -> None:
     )
     for r in crashes:
         print(f"  crash: run {r.index} --fault {r.fault!r} exit {r.exit_code}: {r.error}")
+
+
+def knot_table(rows: list[CampaignRow]) -> str:
+    """The ground truth's knot at the end of each run with a thread, by fault kind and
+    outcome class, as a Markdown table ("" when no row has a knot).
+
+    A run that ``succeeded`` without the knot its procedure ties is the procedure fooled:
+    this table is where that shows.
+    """
+    knotted = [r for r in rows if r.knot]
+    if not knotted:
+        return ""
+    kinds = sorted({r.kind for r in knotted})
+    cells: dict[tuple[str, str, str], int] = {}
+    columns: set[tuple[str, str]] = set()
+    for r in knotted:
+        cls = "succeeded" if r.outcome == "succeeded" else "not succeeded"
+        cells[(r.kind, cls, r.knot)] = cells.get((r.kind, cls, r.knot), 0) + 1
+        columns.add((cls, r.knot))
+    order = sorted(columns, key=lambda c: (c[0] != "succeeded", c[1]))
+    head = ["fault kind", *(f"{cls}: {knot}" for cls, knot in order)]
+    lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for kind in [*kinds, "all"]:
+        counts = [
+            sum(n for (k, c, t), n in cells.items() if (c, t) == col and kind in (k, "all"))
+            for col in order
+        ]
+        label = "**all**" if kind == "all" else kind
+        lines.append("| " + " | ".join([label, *map(str, counts)]) + " |")
+    return "\n".join(lines)
 
 
 def write_rows(path: Path, rows: list[CampaignRow]) -> None:

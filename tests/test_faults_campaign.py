@@ -23,6 +23,7 @@ from suture_engine.faults.campaign import (
     random_fault,
     run_campaign,
     run_job,
+    summary_knot,
     tally,
     trace_violations,
 )
@@ -189,6 +190,7 @@ def test_four_runs_end_to_end(tmp_path: Path) -> None:
         assert r.limit_N == pytest.approx(min(0.96, 17.85 / 9.80665) * 9.80665 * 0.5)
         assert (job.out_dir / "trace.mcap").is_file()
         assert math.isnan(r.max_true_tension_N)  # the ideal backend has no thread
+        assert r.knot == ""
     assert sum(r.fault_records for r in rows) >= 1
 
 
@@ -296,3 +298,35 @@ def test_state_triggers_of_sub_procedure_steps_parse_and_match(tmp_path: Path) -
     assert drawn == {"approach", "tighten"}
     for name in drawn:
         assert any(state_matches(step, name) for step in steps)
+
+
+def test_the_row_keeps_the_ground_truth_knot_of_the_summary() -> None:
+    assert summary_knot({"knot": {"type": "trefoil", "determinant": 3}}) == "trefoil"
+    two = {"knot": [{"type": "square"}, {"type": "unknot"}, {"type": "granny"}]}
+    assert summary_knot(two) == "square+unknot+granny"
+    assert summary_knot({}) == summary_knot({"knot": None}) == ""
+
+
+def test_the_knot_table_counts_knots_by_kind_and_outcome() -> None:
+    bench = load_benchmark("fault_campaign")
+
+    def row(i: int, kind: str, outcome: str, knot: str) -> CampaignRow:
+        return CampaignRow(i, "k.yaml", "pybullet-surgical", kind, "", 1, outcome, 0, knot=knot)
+
+    rows = [
+        row(0, "noise", "succeeded", "trefoil"),
+        row(1, "noise", "succeeded", "unknot"),
+        row(2, "snag", "aborted by policy: lock", "unknot"),
+        row(3, "snag", "succeeded", "trefoil"),
+        row(4, "bias", "succeeded", ""),  # no thread: left out
+    ]
+    table = bench.knot_table(rows).splitlines()
+    assert table[0] == (
+        "| fault kind | succeeded: trefoil | succeeded: unknot | not succeeded: unknot |"
+    )
+    assert table[2:] == [
+        "| noise | 1 | 1 | 0 |",
+        "| snag | 1 | 0 | 1 |",
+        "| **all** | 2 | 1 | 1 |",
+    ]
+    assert bench.knot_table(rows[4:]) == ""

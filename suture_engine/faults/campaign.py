@@ -69,6 +69,7 @@ __all__ = [
     "random_fault",
     "run_campaign",
     "run_job",
+    "summary_knot",
     "tally",
     "trace_violations",
 ]
@@ -155,6 +156,8 @@ class CampaignRow:
         fault_records: fault onsets recorded in the trace.
         error: why the run is a crash ("" otherwise).
         sim_time_s: the simulated time the run lasted (NaN for a crash) [s].
+        knot: the ground truth's knot at the run's end (the summary's ``knot.type``;
+            several knots joined by ``+``; "" without a thread or a summary).
     """
 
     index: int
@@ -175,6 +178,7 @@ class CampaignRow:
     fault_records: int = 0
     error: str = ""
     sim_time_s: float = math.nan
+    knot: str = ""
 
 
 def _when_or_at(rng: np.random.Generator, target: Target, data: dict[str, Any]) -> None:
@@ -399,7 +403,19 @@ def run_job(job: CampaignJob, python: str = sys.executable) -> CampaignRow:
         estimate_over_limit=est_over,
         fault_records=onsets,
         sim_time_s=float(summary.get("sim_time_s", math.nan)),
+        knot=summary_knot(summary),
     )
+
+
+def summary_knot(summary: dict[str, Any]) -> str:
+    """The ground truth's knot type in a run's summary ("" when it has none).
+
+    The summary's ``knot`` is one classification, or a list of them (one per knot).
+    """
+    knot = summary.get("knot")
+    entries = knot if isinstance(knot, list) else [knot]
+    types = [str(k.get("type", "")) for k in entries if isinstance(k, dict)]
+    return "+".join(t for t in types if t)
 
 
 def _row(job: CampaignJob, outcome: str, exit_code: int, **fields: Any) -> CampaignRow:
