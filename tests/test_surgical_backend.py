@@ -244,7 +244,7 @@ def test_stitch_procedure_passes_the_needle_through_the_tissue(tmp_path: Path) -
         assert np.linalg.norm(line - np.asarray(point), axis=1).min() < 6e-3
 
 
-def test_inject_grasp_slip_drops_what_the_jaw_holds_and_the_tool_state_does_not_show_it() -> None:
+def test_inject_grasp_slip_drops_what_the_jaw_holds_and_only_the_needle_latch_shows_it() -> None:
     be = SurgicalPyBulletBackend(start="stitched")
     try:
         be.reset(load_procedure(BENCH).scene, 0)
@@ -271,10 +271,17 @@ def test_inject_grasp_slip_drops_what_the_jaw_holds_and_the_tool_state_does_not_
         assert not grasper.holding and grasper.state is JawState.CLOSED
         assert be.observe().robots["endobot_2"].tool.jaw_closed
         # The stitcher's jaw loses the needle: it falls away from the jaw on its thread, and
-        # a commanded hand-over then passes nothing.
+        # a commanded hand-over then passes nothing. Its jaws read closed on the needle
+        # latched in them: with the needle gone neither does, whatever is commanded (the
+        # grasper's jaws, above, cannot feel a thread).
+        assert be.observe().robots["endobot_1"].tool.jaw_closed
         assert be.inject_grasp_slip("endobot_1") is True and not stitcher.holds_needle
+        tool = be.observe().robots["endobot_1"].tool
+        assert not tool.jaw_closed and not tool.jaw2_closed
         _hold(be, {"endobot_1": ToolCommand(jaw_closed=True, jaw2_closed=True)}, 300)
         assert stitcher.needle_holder == 0 and not stitcher.passing
+        tool = be.observe().robots["endobot_1"].tool
+        assert not tool.jaw_closed and not tool.jaw2_closed
         assert be.inject_grasp_slip("endobot_1") is False
         with pytest.raises(Exception, match="no robot"):
             be.inject_grasp_slip("endobot_9")

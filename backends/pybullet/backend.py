@@ -495,13 +495,17 @@ class PyBulletBackend:
     def _tool_reading(self, name: str) -> ToolState:
         """The tool state as measured: the commanded one, except that a stitcher's
         receiving jaw reads closed only once the needle hand-over is done (never after one
-        that stopped short), and that a simulated hook's actuator reports its load."""
+        that stopped short), that a stitcher which lost its needle (a dropped needle) reads
+        neither jaw closed (its jaws sense the needle latched in them), and that a
+        simulated hook's actuator reports its load."""
         state = self._tools[name]
         tool = self.scene.tools.get(name) if self.scene is not None else None
         if tool is None:
             return state
         if getattr(tool, "hook_body", -1) >= 0:
             return replace(state, hook_load=round(tool.hook_load(), self.HOOK_LOAD_DIGITS))
+        if getattr(tool, "needle_body", -1) >= 0 and not tool.holds_needle:
+            return ToolState(state.kind, False, False, state.hook_extension, state.bend)
         if not (getattr(tool, "passing", False) or getattr(tool, "stalled", False)):
             return state
         if tool.needle_holder == 0:
