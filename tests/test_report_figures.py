@@ -45,8 +45,9 @@ def test_every_figure_from_a_full_trace(known: Path) -> None:
         assert fig.png.startswith(PNG_MAGIC)
         assert _pixels(fig.png).shape[0] > 200
     by_name = {f.name: f for f in figures}
-    # Only the second robot's QP is empty in this trace; everything else has data.
+    # Only the second robot's QP and the thread (no thread here) are empty in this trace.
     assert by_name["qp"].missing == (channels.qp_topic(ROBOTS[1]),)
+    assert by_name["thread_states"].missing == (channels.GROUND_TRUTH_SUTURE,)
     for name in ("force_tracking", "joint_positions", "task_path", "tension", "timeline"):
         assert by_name[name].missing == (), name
 
@@ -157,3 +158,36 @@ def test_cli_plot_runs_as_a_command(tmp_path: Path) -> None:
     assert result.exit_code == 1
     assert result.exception is None or isinstance(result.exception, SystemExit)
     assert not (tmp_path / "p").exists()
+
+
+def test_thread_states_keep_the_thread_as_each_state_left_it(tmp_path: Path) -> None:
+    path = tmp_path / "trace.mcap"
+    meta = TraceMeta(procedure="thread", seed=0, control_rate_hz=1000.0, robots=("left",))
+
+    def line(height_m: float) -> dict[str, list[float]]:
+        return {"x": [0.0, 0.01, 0.02], "y": [0.0, 0.0, 0.0], "z": [0.0, height_m, 0.0]}
+
+    with TraceWriter(path, meta, fsync=False) as w:
+        w.write(channels.TRANSITIONS, 0, {"source": "idle", "dest": "autonomous/a"})
+        w.write(channels.GROUND_TRUTH_SUTURE, 100_000_000, line(0.001))
+        w.write(channels.GROUND_TRUTH_SUTURE, 200_000_000, line(0.002))
+        # a leaves at 0.25 s with the 0.2 s centerline; b takes no time (the same one)
+        w.write(
+            channels.TRANSITIONS, 250_000_000, {"source": "autonomous/a", "dest": "autonomous/b"}
+        )
+        w.write(
+            channels.TRANSITIONS, 250_000_000, {"source": "autonomous/b", "dest": "autonomous/c"}
+        )
+        w.write(channels.GROUND_TRUTH_SUTURE, 300_000_000, line(0.005))
+    data = load_trace(path)
+    assert [(t, state) for t, state, _ in data.thread_exits] == [
+        (0.2, "autonomous/a"),
+        (0.2, "autonomous/b"),
+        (0.3, "autonomous/c"),  # the trace's last centerline, under its final state
+    ]
+    assert [m["z"][1] for _, _, m in data.thread_exits] == [0.002, 0.002, 0.005]
+    (fig,) = render_figures(data, ["thread_states"])
+    assert fig.missing == () and fig.png.startswith(PNG_MAGIC)
+    # two shots (a and b share one), each from above and from the side; the rest of the
+    # row's panels are left blank: the figure is one row high
+    assert 250 < _pixels(fig.png).shape[0] < 400

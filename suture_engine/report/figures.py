@@ -19,6 +19,9 @@ Figures (PNG, matplotlib's Agg canvas, no pyplot state):
 * ``timeline``: Gantt of the automaton's states with NOT-BE episodes, retries,
   unpredictable events and operator events.
 * ``qp``: active constraints, iterations and solve time [us] of the per-tick QP.
+* ``thread_states``: the simulator's thread (ground truth, backends with a thread) as
+  each state left it, from above and from the side [mm], one pair of panels per state
+  whose thread moved. For evaluation: what each step did to the thread.
 
 Example:
     >>> data = load_trace("runs/demo/trace.mcap")
@@ -61,8 +64,13 @@ FIGURE_NAMES: tuple[str, ...] = (
     "tension",
     "timeline",
     "qp",
+    "thread_states",
 )
 """The figures :func:`render_figures` draws, in order."""
+
+THREAD_STATES_MAX = 64
+"""The most states ``thread_states`` draws (the first ones; the figure says how many it
+left out)."""
 
 _NOTBE = "~notbe"
 _DPI = 100
@@ -82,6 +90,9 @@ class TraceData:
         series: per topic, the ``(t [s], message)`` pairs in time order (of
             ``/ground_truth/suture`` only the last, to bound memory).
         summary: the run's ``summary.json`` beside the trace, if any.
+        thread_exits: ``(t [s], state, centerline)`` for each state left: the last
+            ``/ground_truth/suture`` message before the transition (``t`` is that
+            message's time), and the last one of the trace under the final state.
     """
 
     path: Path
@@ -89,6 +100,7 @@ class TraceData:
     status: TraceStatus
     series: Mapping[str, Sequence[tuple[float, Any]]]
     summary: Mapping[str, Any] | None
+    thread_exits: Sequence[tuple[float, str, Any]] = ()
 
     @property
     def robots(self) -> list[str]:
@@ -146,14 +158,26 @@ def load_trace(path: str | os.PathLike[str]) -> TraceData:
     reader = TraceReader(path)
     series: dict[str, list[tuple[float, Any]]] = {}
     meta: dict[str, Any] = {}
+    exits: list[tuple[float, str, Any]] = []
+    state = ""
     for msg in reader.messages():
         if msg.topic == channels.META and not meta and isinstance(msg.data, dict):
             meta = dict(msg.data)
         rows = series.setdefault(msg.topic, [])
+        if msg.topic == channels.TRANSITIONS and isinstance(msg.data, dict):
+            state = str(msg.data.get("dest", ""))
+            centerline = series.get(channels.GROUND_TRUTH_SUTURE)
+            if centerline:
+                exits.append(
+                    (centerline[-1][0], str(msg.data.get("source", "")), centerline[-1][1])
+                )
         if msg.topic == channels.GROUND_TRUTH_SUTURE and rows:
-            rows[-1] = (msg.log_time_ns / 1e9, msg.data)  # only the last centerline is used
+            rows[-1] = (msg.log_time_ns / 1e9, msg.data)  # the latest centerline only
         else:
             rows.append((msg.log_time_ns / 1e9, msg.data))
+    last = series.get(channels.GROUND_TRUTH_SUTURE)
+    if last:
+        exits.append((last[-1][0], state or "end", last[-1][1]))
     summary: dict[str, Any] | None = None
     summary_path = Path(path).with_name("summary.json")
     if summary_path.is_file():
@@ -162,7 +186,7 @@ def load_trace(path: str | os.PathLike[str]) -> TraceData:
             summary = loaded if isinstance(loaded, dict) else None
         except (OSError, ValueError):
             summary = None
-    return TraceData(Path(path), meta, reader.status, series, summary)
+    return TraceData(Path(path), meta, reader.status, series, summary, tuple(exits))
 
 
 # -- helpers --------------------------------------------------------------------------------
@@ -596,6 +620,70 @@ def _qp(data: TraceData) -> RenderedFigure:
     return RenderedFigure("qp", "QP active constraints and solve time", _png(fig), tuple(missing))
 
 
+def _centerline_mm(message: Any) -> Any:
+    """A ``/ground_truth/suture`` message as an (N, 3) array [mm] (None when malformed)."""
+    import numpy as np
+
+    if not isinstance(message, dict):
+        return None
+    xyz = [_floats(message.get(k)) for k in ("x", "y", "z")]
+    if not xyz[0] or any(len(c) != len(xyz[0]) for c in xyz):
+        return None
+    return np.array(xyz, dtype=float).T * 1e3
+
+
+def _thread_states(data: TraceData) -> RenderedFigure:
+    import numpy as np
+
+    title = "Thread as each state left it (ground truth)"
+    shots: list[tuple[float, str, Any]] = []
+    for t, state, message in data.thread_exits:
+        points = _centerline_mm(message)
+        if points is None:
+            continue
+        if shots and shots[-1][0] == t:  # the same centerline: the state took no time
+            shots[-1] = (t, f"{shots[-1][1]}, {state.split('/')[-1]}", points)
+            continue
+        shots.append((t, state.split("/")[-1], points))
+    if not shots:
+        fig = _new_figure(9, 3)
+        _no_data(fig.subplots(), channels.GROUND_TRUTH_SUTURE)
+        return RenderedFigure("thread_states", title, _png(fig), (channels.GROUND_TRUTH_SUTURE,))
+    left_out = max(0, len(shots) - THREAD_STATES_MAX)
+    shots = shots[:THREAD_STATES_MAX]
+    every = np.vstack([p for _, _, p in shots])
+    lo, hi = np.nanmin(every, axis=0), np.nanmax(every, axis=0)
+    pad = 0.05 * float(np.nanmax(hi - lo)) + 1.0
+    per_row = 4
+    rows = -(-len(shots) // per_row)
+    fig = _new_figure(2.6 * per_row * 2 / 1.6, 0.6 + 2.3 * rows)
+    axes = fig.subplots(rows, 2 * per_row, squeeze=False)
+    suffix = f" (the first {THREAD_STATES_MAX}; {left_out} more not drawn)" if left_out else ""
+    fig.suptitle(
+        f"{title}{suffix}: from above (x-y) and from the side (x-z) [mm]; "
+        "square: the tail end, triangle: the needle end, dashed: the tissue surface",
+        fontsize=9,
+    )
+    for k, ax in enumerate(axes.flat):
+        if k // 2 >= len(shots):
+            ax.set_axis_off()
+            continue
+        t, label, points = shots[k // 2]
+        a, b = (0, 1) if k % 2 == 0 else (0, 2)
+        ax.plot(points[:, a], points[:, b], "-", color=_COLOURS[0], lw=1.0)
+        ax.plot(points[0, a], points[0, b], "s", color=_COLOURS[2], ms=4)
+        ax.plot(points[-1, a], points[-1, b], "^", color=_COLOURS[3], ms=4)
+        if b == 2:
+            ax.axhline(0.0, color="#777777", ls="--", lw=0.8)
+        ax.set_xlim(lo[a] - pad, hi[a] + pad)
+        ax.set_ylim(lo[b] - pad, hi[b] + pad)
+        ax.set_aspect("equal", adjustable="box")
+        ax.tick_params(labelsize=6)
+        view = "x-y" if b == 1 else "x-z"
+        ax.set_title(f"{label[:32]}\n{t:.1f} s, {view}", fontsize=7)
+    return RenderedFigure("thread_states", title, _png(fig), ())
+
+
 _DRAW = {
     "force_tracking": _force_tracking,
     "joint_positions": _joint_positions,
@@ -603,6 +691,7 @@ _DRAW = {
     "tension": _tension,
     "timeline": _timeline,
     "qp": _qp,
+    "thread_states": _thread_states,
 }
 
 
