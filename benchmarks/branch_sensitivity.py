@@ -193,7 +193,9 @@ def apply_variant(steps: dict[str, Any], variant: Variant, entered: set[str]) ->
         if step not in steps:
             raise VariantError(variant.name, f"no step {step!r} in the compiled procedure")
         if step in entered:
-            raise VariantError(variant.name, f"step {step!r} ran before the branch point")
+            raise VariantError(
+                variant.name, f"step {step!r} ran before the branch point (or starts there)"
+            )
         spec = steps[step]
         skill = spec.make_skill()
         cls, params = type(skill), _changed_params(skill.params, changes, variant.name)
@@ -282,7 +284,8 @@ def run_branches(
 
     Raises:
         VariantError: a variant that cannot be applied (checked before the run starts,
-            except for steps that run before the branch point, found there).
+            the branch step itself included, except for steps that run before the branch
+            point, found there).
         RuntimeError: the run ended before reaching ``at``, or a branch died.
     """
     from backends import registry
@@ -292,8 +295,9 @@ def run_branches(
     proc, plan = load_plan(procedure, sets)
     if at not in plan.steps:
         raise VariantError(at, f"--at: no step {at!r} in the compiled procedure")
-    for v in variants:  # unknown steps, fields and values, before the long prefix
-        apply_variant(dict(plan.steps), v, set())
+    for v in variants:  # unknown steps, fields and values, before the long prefix;
+        # the step entered at the branch point has started there: it cannot change
+        apply_variant(dict(plan.steps), v, {at})
     be = registry.create(backend or proc.backend or "pybullet")
     scene = proc.scene
     recorder = BranchRecorder(be)

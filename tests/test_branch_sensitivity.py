@@ -137,6 +137,8 @@ def test_malformed_variants_are_refused(spec: str, message: str) -> None:
         ("x: move-2.sped=1 mm/s", "no field 'sped'"),
         ("x: move-2.speed=-1 mm/s", "move-2: .*speed"),
         ("x: move-2.speed+=[1 mm, 2 mm]", "cannot add"),
+        # the branch step itself has started at the branch point
+        ("x: hold-1.duration=1 s", "'hold-1' ran before the branch point"),
     ],
 )
 def test_variants_that_cannot_apply_are_refused_before_the_run(
