@@ -408,8 +408,9 @@ def knot_table(rows: list[CampaignRow]) -> str:
     """The ground truth's knot at the end of each run with a thread, by fault kind and
     outcome class, as a Markdown table ("" when no row has a knot).
 
-    A run that ``succeeded`` without the knot its procedure ties is the procedure fooled:
-    this table is where that shows.
+    A run that ``succeeded`` without the knot its procedure ties, or with its thread out
+    of the tissue (no stitch made), is the procedure fooled: this table is where that
+    shows.
     """
     knotted = [r for r in rows if r.knot]
     if not knotted:
@@ -419,8 +420,9 @@ def knot_table(rows: list[CampaignRow]) -> str:
     columns: set[tuple[str, str]] = set()
     for r in knotted:
         cls = "succeeded" if r.outcome == "succeeded" else "not succeeded"
-        cells[(r.kind, cls, r.knot)] = cells.get((r.kind, cls, r.knot), 0) + 1
-        columns.add((cls, r.knot))
+        knot = f"{r.knot} (thread out of the tissue)" if r.through_tissue == "no" else r.knot
+        cells[(r.kind, cls, knot)] = cells.get((r.kind, cls, knot), 0) + 1
+        columns.add((cls, knot))
     order = sorted(columns, key=lambda c: (c[0] != "succeeded", c[1]))
     head = ["fault kind", *(f"{cls}: {knot}" for cls, knot in order)]
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]

@@ -24,6 +24,7 @@ from suture_engine.faults.campaign import (
     run_campaign,
     run_job,
     summary_knot,
+    summary_through_tissue,
     tally,
     trace_violations,
 )
@@ -190,7 +191,7 @@ def test_four_runs_end_to_end(tmp_path: Path) -> None:
         assert r.limit_N == pytest.approx(min(0.96, 17.85 / 9.80665) * 9.80665 * 0.5)
         assert (job.out_dir / "trace.mcap").is_file()
         assert math.isnan(r.max_true_tension_N)  # the ideal backend has no thread
-        assert r.knot == ""
+        assert r.knot == "" and r.through_tissue == ""
     assert sum(r.fault_records for r in rows) >= 1
 
 
@@ -305,6 +306,10 @@ def test_the_row_keeps_the_ground_truth_knot_of_the_summary() -> None:
     two = {"knot": [{"type": "square"}, {"type": "unknot"}, {"type": "granny"}]}
     assert summary_knot(two) == "square+unknot+granny"
     assert summary_knot({}) == summary_knot({"knot": None}) == ""
+    assert summary_through_tissue({"knot": {"type": "unknot", "through_tissue": True}}) == "yes"
+    out = {"knot": [{"through_tissue": True}, {"through_tissue": False}]}
+    assert summary_through_tissue(out) == "no"
+    assert summary_through_tissue({"knot": {"type": "unknot"}}) == summary_through_tissue({}) == ""
 
 
 def test_the_knot_table_counts_knots_by_kind_and_outcome() -> None:
@@ -320,6 +325,7 @@ def test_the_knot_table_counts_knots_by_kind_and_outcome() -> None:
         row(3, "snag", "succeeded", "trefoil"),
         row(4, "bias", "succeeded", ""),  # no thread: left out
     ]
+    fooled = replace(row(5, "snag", "succeeded", "unknot"), through_tissue="no")
     table = bench.knot_table(rows).splitlines()
     assert table[0] == (
         "| fault kind | succeeded: trefoil | succeeded: unknot | not succeeded: unknot |"
@@ -330,3 +336,6 @@ def test_the_knot_table_counts_knots_by_kind_and_outcome() -> None:
         "| **all** | 2 | 1 | 1 |",
     ]
     assert bench.knot_table(rows[4:]) == ""
+    with_fooled = bench.knot_table([*rows, fooled]).splitlines()
+    assert "succeeded: unknot (thread out of the tissue)" in with_fooled[0]
+    assert with_fooled[-1] == "| **all** | 2 | 1 | 1 | 1 |"

@@ -70,6 +70,7 @@ __all__ = [
     "run_campaign",
     "run_job",
     "summary_knot",
+    "summary_through_tissue",
     "tally",
     "trace_violations",
 ]
@@ -158,6 +159,9 @@ class CampaignRow:
         sim_time_s: the simulated time the run lasted (NaN for a crash) [s].
         knot: the ground truth's knot at the run's end (the summary's ``knot.type``;
             several knots joined by ``+``; "" without a thread or a summary).
+        through_tissue: whether the thread still runs through the tissue at the end
+            (the summary's ``knot.through_tissue``): ``yes``, ``no`` (no stitch made,
+            or it was pulled out), or "" (not known).
     """
 
     index: int
@@ -179,6 +183,7 @@ class CampaignRow:
     error: str = ""
     sim_time_s: float = math.nan
     knot: str = ""
+    through_tissue: str = ""
 
 
 def _when_or_at(rng: np.random.Generator, target: Target, data: dict[str, Any]) -> None:
@@ -404,6 +409,7 @@ def run_job(job: CampaignJob, python: str = sys.executable) -> CampaignRow:
         fault_records=onsets,
         sim_time_s=float(summary.get("sim_time_s", math.nan)),
         knot=summary_knot(summary),
+        through_tissue=summary_through_tissue(summary),
     )
 
 
@@ -416,6 +422,18 @@ def summary_knot(summary: dict[str, Any]) -> str:
     entries = knot if isinstance(knot, list) else [knot]
     types = [str(k.get("type", "")) for k in entries if isinstance(k, dict)]
     return "+".join(t for t in types if t)
+
+
+def summary_through_tissue(summary: dict[str, Any]) -> str:
+    """``yes`` / ``no``: whether every knot entry of a run's summary has its thread through
+    the tissue ("" when the summary does not say)."""
+    knot = summary.get("knot")
+    entries = knot if isinstance(knot, list) else [knot]
+    flags = [k.get("through_tissue") for k in entries if isinstance(k, dict)]
+    flags = [f for f in flags if isinstance(f, bool)]
+    if not flags:
+        return ""
+    return "yes" if all(flags) else "no"
 
 
 def _row(job: CampaignJob, outcome: str, exit_code: int, **fields: Any) -> CampaignRow:
