@@ -350,13 +350,7 @@ def main() -> None:
     cpu = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)
     rows = [done_rows[j.number] for j in jobs if j.number in done_rows]
     print()
-    print(format_table(rows))
-    print()
-    print(format_table(rows, by="procedure"))
-    knots = knot_table(rows)
-    if knots:
-        print()
-        print(knots)
+    print_tables(rows)
     crashes = [r for r in rows if r.outcome == "crash"]
     violations = sum(r.true_violations > 0 for r in rows)
     with_truth = sum(r.max_true_tension_N == r.max_true_tension_N for r in rows)
@@ -382,13 +376,7 @@ def report(csv_path: Path, out: Path | None) -> None:
         print(format_table(list(read_rows(out / "baseline.csv").values()), by="procedure"))
         print()
     rows = sorted(read_rows(csv_path).values(), key=lambda r: r.index)
-    print(format_table(rows))
-    print()
-    print(format_table(rows, by="procedure"))
-    knots = knot_table(rows)
-    if knots:
-        print()
-        print(knots)
+    print_tables(rows)
     print()
     crashes = [r for r in rows if r.outcome == "crash"]
     with_truth = sum(math.isfinite(r.max_true_tension_N) for r in rows)
@@ -402,6 +390,18 @@ def report(csv_path: Path, out: Path | None) -> None:
     )
     for r in crashes:
         print(f"  crash: run {r.index} --fault {r.fault!r} exit {r.exit_code}: {r.error}")
+
+
+def print_tables(rows: list[CampaignRow]) -> None:
+    """Print the outcome tables per fault kind and per procedure, and the knot table when
+    the runs had a thread."""
+    print(format_table(rows))
+    print()
+    print(format_table(rows, by="procedure"))
+    knots = knot_table(rows)
+    if knots:
+        print()
+        print(knots)
 
 
 def knot_table(rows: list[CampaignRow]) -> str:

@@ -413,23 +413,23 @@ def run_job(job: CampaignJob, python: str = sys.executable) -> CampaignRow:
     )
 
 
-def summary_knot(summary: dict[str, Any]) -> str:
-    """The ground truth's knot type in a run's summary ("" when it has none).
-
-    The summary's ``knot`` is one classification, or a list of them (one per knot).
-    """
+def _knot_entries(summary: dict[str, Any]) -> list[dict[str, Any]]:
+    """The summary's ``knot`` classifications: it holds one, or a list (one per knot)."""
     knot = summary.get("knot")
     entries = knot if isinstance(knot, list) else [knot]
-    types = [str(k.get("type", "")) for k in entries if isinstance(k, dict)]
+    return [k for k in entries if isinstance(k, dict)]
+
+
+def summary_knot(summary: dict[str, Any]) -> str:
+    """The ground truth's knot type in a run's summary ("" when it has none)."""
+    types = [str(k.get("type", "")) for k in _knot_entries(summary)]
     return "+".join(t for t in types if t)
 
 
 def summary_through_tissue(summary: dict[str, Any]) -> str:
     """``yes`` / ``no``: whether every knot entry of a run's summary has its thread through
     the tissue ("" when the summary does not say)."""
-    knot = summary.get("knot")
-    entries = knot if isinstance(knot, list) else [knot]
-    flags = [k.get("through_tissue") for k in entries if isinstance(k, dict)]
+    flags = [k.get("through_tissue") for k in _knot_entries(summary)]
     flags = [f for f in flags if isinstance(f, bool)]
     if not flags:
         return ""
