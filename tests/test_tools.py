@@ -300,49 +300,52 @@ def test_hook_load_reads_a_force_along_the_stroke(force: float) -> None:
         p.disconnect(physicsClientId=c)
 
 
+def _hook_offset_measured(g: Grasper) -> float:
+    """Where the hook body is along the jaws' +z, from PyBullet's own poses [m]."""
+    pos, orn = p.getBasePositionAndOrientation(g.body, physicsClientId=g.client)
+    hook, _ = p.getBasePositionAndOrientation(g.hook_body, physicsClientId=g.client)
+    z = np.asarray(p.getMatrixFromQuaternion(orn))[2::3]
+    return float(np.subtract(hook, pos) @ z)
+
+
 @pytest.mark.parametrize(
     "direction", [(1.0, 0.0, 0.0), (-1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.6, 0.0, 0.8)]
 )
-def test_the_extending_hook_gives_way_on_the_thread_the_jaws_hold(direction) -> None:
-    """A grasper holds a thread by its end capsule; the hook extends over the jaws into it.
-    Its actuator gives way at ``hook_drive_force`` (5 N): the load never exceeds it and the
-    held capsule stays in the grip, whichever way the thread leaves the jaws. With the
-    tools' 50 N drive instead, the hook shoves the held capsule out of the grip."""
+def test_the_extending_hook_passes_the_thread_the_jaws_hold(direction) -> None:
+    """A grasper holds a thread by its end capsule (the tail-held start's grip) and
+    extends its hook over the jaws. The held capsule lies between the jaw faces, and the
+    hook runs along the jaws' back: the hook reaches its full stroke (measured from the
+    bodies' poses), its actuator stays under its 5 N drive, and the held capsule stays in
+    the grip, whichever way the thread leaves the jaws. When the hook touched the held
+    capsule, it stalled short of its stroke against the drive on the full chain (2.4 mm)."""
     c = p.connect(p.DIRECT)
     try:
         configure_physics(c)
         d = np.asarray(direction) / np.linalg.norm(direction)
         params = SutureParams(length=LENGTH, n_segments=SEGMENTS, needle=False)
+        suture = Suture.create(c, straight_path((0.0, 0.0, 0.05), tuple(d), LENGTH), params)
+        line = suture.centerline()
+        g = Grasper.create(c, "g", tuple((line[0] + line[1]) / 2), suture=suture)
+        g.grip(0)
 
-        def extend(drive: float) -> tuple[float, float]:
-            """Peak actuator load [N] and how far the held capsule moved [m]."""
-            suture = Suture.create(c, straight_path((0.0, 0.0, 0.05), tuple(d), LENGTH), params)
-            line = suture.centerline()
-            at = tuple((line[0] + line[1]) / 2)
-            g = Grasper.create(c, f"g{drive}", at, suture=suture, hook_drive_force=drive)
-            g.grip(0)
+        def step() -> None:
+            g.step()
+            suture.pre_step()
+            p.stepSimulation(physicsClientId=c)
 
-            def step() -> None:
-                g.step()
-                suture.pre_step()
-                p.stepSimulation(physicsClientId=c)
-
-            for _ in range(200):  # the hook's drive pulls it in from where it was built
-                step()
-            before, _ = p.getBasePositionAndOrientation(suture.bodies[0], physicsClientId=c)
-            g.extend_hook()
-            loads = []
-            for _ in range(400):
-                step()
-                loads.append(abs(g.hook_load()))
-            after, _ = p.getBasePositionAndOrientation(suture.bodies[0], physicsClientId=c)
-            p.resetSimulation(physicsClientId=c)
-            configure_physics(c)
-            return max(loads), float(np.linalg.norm(np.subtract(after, before)))
-
-        load, moved = extend(Grasper.hook_drive_force)
-        assert load <= Grasper.hook_drive_force + 1e-6 and moved < 0.2e-3
-        load, moved = extend(50.0)
-        assert load > 40.0 and moved > 2e-3
+        for _ in range(200):  # the hook's drive pulls it in from where it was built
+            step()
+        before, _ = p.getBasePositionAndOrientation(suture.bodies[0], physicsClientId=c)
+        g.extend_hook()
+        loads = []
+        for _ in range(400):
+            step()
+            loads.append(abs(g.hook_load()))
+        after, _ = p.getBasePositionAndOrientation(suture.bodies[0], physicsClientId=c)
+        assert g.hook_extension == 1.0
+        assert _hook_offset_measured(g) == pytest.approx(g.hook_reach, abs=0.1e-3)
+        assert max(loads) <= Grasper.hook_drive_force
+        assert np.linalg.norm(np.subtract(after, before)) < 0.2e-3
+        assert g.held_segment == 0
     finally:
         p.disconnect(physicsClientId=c)

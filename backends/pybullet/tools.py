@@ -383,6 +383,8 @@ class Grasper(Tool):
     _hook_drive: int = -1
     _held: list[int] = field(default_factory=list)
     _solid_for: int = -1
+    _hook_on: bool = False
+    _hook_for: int = -1
     _anchor: FloatArray = field(default_factory=lambda: np.zeros(3))
     _gripped_at: FloatArray = field(default_factory=lambda: np.zeros(3))
     _lag: float | None = None
@@ -691,6 +693,8 @@ class Grasper(Tool):
             self._limit_grip()
         if self.solid and self.held_segment != self._solid_for:
             self._solidify()
+        if self._hook_on and self.held_segment != self._hook_for:
+            self._set_hook_collision(True)
         self._step_hook()
 
     def _solidify(self) -> None:
@@ -759,16 +763,29 @@ class Grasper(Tool):
         self._drive_hook()
 
     def _set_hook_collision(self, on: bool) -> None:
-        """A retracted hook lies inside the shaft and touches nothing; an extended one does."""
+        """A retracted hook lies inside the shaft and touches nothing; an extended one
+        touches the thread and the needle, except the capsule the jaws hold: that lies
+        between the jaw faces, and the hook runs along the jaws' back. (Touching it, the
+        hook extending over jaws that held the thread's end capsule stalled 2.4 mm short
+        against its 5 N drive, its crook off the jaws, and no loop stayed on them.)"""
         import pybullet as p
 
+        held = self.held_segment
         others = list(self.suture.bodies) if self.suture is not None else []
-        if self.suture is not None and self.suture.needle_body >= 0:
-            others.append(self.suture.needle_body)
-        for b in others:
+        for i, b in enumerate(others):
             p.setCollisionFilterPair(
-                self.hook_body, b, -1, -1, int(on), physicsClientId=self.client
+                self.hook_body, b, -1, -1, int(on and i != held), physicsClientId=self.client
             )
+        if self.suture is not None and self.suture.needle_body >= 0:
+            p.setCollisionFilterPair(
+                self.hook_body,
+                self.suture.needle_body,
+                -1,
+                -1,
+                int(on),
+                physicsClientId=self.client,
+            )
+        self._hook_on, self._hook_for = on, held
 
     def hook_load(self) -> float:
         """Load on the hook's actuator along its stroke [N] (0 without a hook).
