@@ -322,6 +322,7 @@ class Grasper(Tool):
             the extending hook pressed the thread end the jaws hold (the tail-held start)
             at 50-59 N, shoving it (true tension 4.45 N), and the retracting hook dragged
             the strand over the jaws to 9.88 N true (full chain, seed 0; 0.40 N at 5 N).
+            The hook now passes the held capsule (see :meth:`_set_hook_collision`).
         solid: the jaws, once they hold the thread, collide with the rest of it (not with
             the held capsule and its ``spare`` neighbours, which the closed jaws enclose,
             nor with the needle), so that a loop around them rests on them as on real
