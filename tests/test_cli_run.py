@@ -252,10 +252,14 @@ def test_a_procedure_names_the_backend_a_plain_run_uses(tmp_path: Path) -> None:
 
 
 def test_an_unknown_backend_in_the_file_is_a_located_error(tmp_path: Path) -> None:
+    # a folder deep enough that the error line is longer than a terminal's 80 columns:
+    # the location must still come out whole (not wrapped), to be copied
+    home = tmp_path / "a-procedure-folder-with-a-long-name" / "and-another-one-below-it"
+    home.mkdir(parents=True)
     text = (PROCS / "steps.yaml").read_text()
-    proc = tmp_path / "steps.yaml"
+    proc = home / "steps.yaml"
     proc.write_text(text.replace("scene: scene.yaml", "backend: pybulet\nscene: scene.yaml"))
-    (tmp_path / "scene.yaml").write_text((PROCS / "scene.yaml").read_text())
+    (home / "scene.yaml").write_text((PROCS / "scene.yaml").read_text())
     for args in (["validate", str(proc)], ["run", str(proc), "--out", str(tmp_path / "x")]):
         res = _suture(*args)
         assert res.returncode != 0

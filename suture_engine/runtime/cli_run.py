@@ -16,9 +16,13 @@ __all__ = ["replay_command", "run_command"]
 
 
 def _error(message: str) -> None:
+    """Print ``message`` on stderr as one unbroken line: a located error's
+    ``file:line:col`` must stay whole to be copied, whatever the terminal's width."""
     from rich.console import Console
 
-    Console(stderr=True, highlight=False).print(f"[bold red]error:[/] {message}", markup=True)
+    Console(stderr=True, highlight=False, soft_wrap=True).print(
+        f"[bold red]error:[/] {message}", markup=True
+    )
 
 
 def _knot_text(entry: Any) -> str:
