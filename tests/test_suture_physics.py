@@ -340,6 +340,87 @@ def test_needle_pass_carries_the_thread_across_the_jaw_gap() -> None:
         p.disconnect(physicsClientId=c)
 
 
+@pytest.mark.parametrize("carry", [0, 3])
+def test_a_thread_leaving_the_giving_jaw_outward_goes_through_it_with_the_needle(
+    carry: int,
+) -> None:
+    """The thread lies straight and slack on a ledge, out of the needle in jaw 0 through
+    the jaw's outer face (-x), away from the gap; the jaws collide with it but for the two
+    capsules at the needle. The hand-over drags the thread back through the giving jaw:
+    with ``handover_carry`` 3 the needle reaches jaw 1; with 0 (the model before
+    2026-12-02) the first capsule that collides catches head-on on the jaw's outer face
+    and the needle stops short at the drive's force, as on the main job's seeds 0 and 9.
+    Once clear of jaw 0, the carried capsules collide with it again: one put back inside
+    the jaw makes contact (PyBullet's own contact query is the oracle)."""
+    import pybullet as p
+
+    from backends.pybullet.suture import Suture, configure_physics, straight_path
+
+    c = p.connect(p.DIRECT)
+    try:
+        configure_physics(c)
+        jaw0 = np.array([-4e-3, 0.0, 3e-3])  # jaw 0 of a stitcher at the origin
+        prm = SutureParams(length=0.06, n_segments=20)
+        sut = Suture.create(c, straight_path(tuple(jaw0 - [0.06, 0, 0]), (1, 0, 0), 0.06), prm)
+        half = [0.03, 0.01, 0.005]  # the ledge ends 1 mm short of the jaw's outer face
+        ledge = p.createCollisionShape(p.GEOM_BOX, halfExtents=half, physicsClientId=c)
+        top = jaw0[2] - prm.collision_radius
+        at = [jaw0[0] - 2e-3 - half[0], 0.0, top - half[2]]
+        p.createMultiBody(0.0, ledge, -1, at, physicsClientId=c)
+        st = Stitcher.create(
+            c, "st", (0.0, 0.0, 0.0), needle_body=sut.needle_body, place_needle=False,
+            handover_carry=carry,
+        )  # fmt: skip
+        st.collide_with(sut)
+        peak = 0.0
+
+        def run(seconds: float) -> None:
+            nonlocal peak
+            for _ in range(round(seconds * 1000)):
+                st.step()
+                sut.pre_step()
+                p.stepSimulation(physicsClientId=c)
+                peak = max(peak, float(np.max(sut.tensions())))
+
+        run(0.3)
+        assert peak < 0.05  # resting slack
+        st.pass_needle()
+        run(st.travel_time + 0.2)
+        if carry == 0:
+            assert st.needle_holder == 0 and len(st.stalls) == 1
+            assert st.stalls[0].shortfall > 2e-3 and 0.8 * 5.0 < peak < 1.3 * 5.0
+            return
+        needle, _ = p.getBasePositionAndOrientation(sut.needle_body, physicsClientId=c)
+        jaw1, _ = p.getBasePositionAndOrientation(st.jaws[1], physicsClientId=c)
+        assert st.needle_holder == 1 and not st.stalls and peak < 1.0
+        assert np.linalg.norm(np.asarray(needle) - jaw1) < 1e-3
+        inside, _ = p.getBasePositionAndOrientation(st.jaws[0], physicsClientId=c)
+
+        def collides(body: int) -> bool:
+            """Whether ``body`` put inside jaw 0 would touch it (then put back)."""
+            pos, orn = p.getBasePositionAndOrientation(body, physicsClientId=c)
+            p.resetBasePositionAndOrientation(body, inside, orn, physicsClientId=c)
+            p.performCollisionDetection(physicsClientId=c)
+            touches = bool(p.getContactPoints(st.jaws[0], body, physicsClientId=c))
+            p.resetBasePositionAndOrientation(body, pos, orn, physicsClientId=c)
+            return touches
+
+        # The needle went 8 mm: the last carried capsule still lies through the jaw and is
+        # let through; the two behind it are clear and collide again.
+        last, *clear = sut.bodies[-3:-6:-1]
+        p.performCollisionDetection(physicsClientId=c)
+        assert p.getClosestPoints(st.jaws[0], last, 0.0, physicsClientId=c)
+        assert not p.getContactPoints(st.jaws[0], last, physicsClientId=c)
+        assert all(collides(body) for body in clear)
+        # drawn out of the jaw, it collides again from the next step on
+        pos, orn = p.getBasePositionAndOrientation(last, physicsClientId=c)
+        p.resetBasePositionAndOrientation(last, [pos[0], pos[1], 0.02], orn, physicsClientId=c)
+        st.step()
+        assert collides(last)
+    finally:
+        p.disconnect(physicsClientId=c)
+
+
 @pytest.mark.parametrize("drive", [5.0, 50.0])
 def test_a_needle_held_back_by_a_taut_thread_stops_short_at_the_drives_force(
     drive: float,

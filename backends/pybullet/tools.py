@@ -1082,6 +1082,16 @@ class Stitcher(Tool):
     closed on it (a :class:`NeedleStall` is recorded). With the full drive, such a
     hand-over stretched the thread to 13.8 N inside the jaws, where no base sensor sees it.
 
+    The thread leaves the needle inside the jaw that holds it (the needle's origin, where
+    the thread is fixed, lies in the jaw), so its last capsules never touch the jaws
+    (:meth:`collide_with`). They may therefore leave the jaw through its outer face, away
+    from the gap, where a real jaw would have turned them back. A hand-over then dragged
+    them back through that jaw until the first capsule that does collide caught on its
+    outer face and held the needle back at the drive's force (a model artefact: the main
+    job's seeds 0 and 9 stalled so, capsule 37 of 40 on the giving jaw at 5.3 N). So while
+    it hands the needle over, the giving jaw also lets through the ``handover_carry``
+    capsules next to those, and each collides with it again once it is clear of it.
+
     Attributes:
         gap: distance between the closed jaws along the tip's x [m].
         open_width: how far each jaw moves out when opening [m].
@@ -1089,12 +1099,17 @@ class Stitcher(Tool):
         needle_holder: index (0: the -x jaw, 1: the +x jaw) of the jaw holding the needle.
         opening: jaw opening, 0 closed to 1 open [-].
         needle_drive_force: the most force the hand-over's drive applies to the needle [N].
+        handover_carry: how many thread capsules, next to the ones that never touch the
+            jaws, the giving jaw lets through during a hand-over [-].
         stalls: the hand-overs that stopped short, in order.
     """
 
     HANDOVER_TOLERANCE: ClassVar[float] = 1e-3
     """How far from the receiving jaw a needle may end its hand-over and still be taken
     [m]."""
+    CLEAR_OVERLAP: ClassVar[float] = 2e-4
+    """A let-through capsule overlapping its jaw by less than this counts as clear of it
+    (one resting on the jaw's face) and collides with it again [m]."""
 
     gap: float = 8e-3
     open_width: float = 4e-3
@@ -1102,6 +1117,7 @@ class Stitcher(Tool):
     needle_holder: int = 0
     opening: float = 0.0
     needle_drive_force: float = 5.0
+    handover_carry: int = 3
     stalls: list[NeedleStall] = field(default_factory=list)
     stalled: bool = False
     """The last hand-over stopped short (until the jaws open or another is asked for)."""
@@ -1115,6 +1131,10 @@ class Stitcher(Tool):
     _pending: bool = False
     _sweep_from: FloatArray = field(default_factory=lambda: np.zeros(3))
     _sweep_orientation: Quat = _IDENTITY
+    _carried: list[int] = field(default_factory=list)
+    """The thread's capsules a giving jaw lets through (see the class docstring)."""
+    _let_through: dict[int, set[int]] = field(default_factory=dict)
+    """Per jaw body, the carried capsules it does not collide with yet."""
 
     @classmethod
     def create(
@@ -1183,11 +1203,37 @@ class Stitcher(Tool):
         import pybullet as p
 
         c = self.client
+        n = len(suture.bodies)
         for jaw in self.jaws:
             p.setCollisionFilterGroupMask(jaw, -1, 1, 0x7FFF, physicsClientId=c)
-            others = [*suture.bodies[len(suture.bodies) - spare :], suture.needle_body]
+            others = [*suture.bodies[n - spare :], suture.needle_body]
             for body in (b for b in others if b >= 0):
                 p.setCollisionFilterPair(jaw, body, -1, -1, 0, physicsClientId=c)
+        self._carried = list(suture.bodies[max(n - spare - self.handover_carry, 0) : n - spare])
+
+    def _let_thread_through(self, jaw: int) -> None:
+        """The giving ``jaw`` stops colliding with the carried capsules (a hand-over)."""
+        import pybullet as p
+
+        held = self._let_through.setdefault(jaw, set())
+        for body in self._carried:
+            if body not in held:
+                p.setCollisionFilterPair(jaw, body, -1, -1, 0, physicsClientId=self.client)
+                held.add(body)
+
+    def _restore_thread_contact(self) -> None:
+        """Each let-through capsule clear of its jaw (``CLEAR_OVERLAP``) collides with it
+        again."""
+        import pybullet as p
+
+        c = self.client
+        for jaw, held in self._let_through.items():
+            for body in sorted(held):
+                near = p.getClosestPoints(jaw, body, 0.0, physicsClientId=c)
+                if all(pt[8] > -self.CLEAR_OVERLAP for pt in near):
+                    p.setCollisionFilterPair(jaw, body, -1, -1, 1, physicsClientId=c)
+                    held.discard(body)
+        self._let_through = {jaw: held for jaw, held in self._let_through.items() if held}
 
     def _drive_jaws(self) -> None:
         """(Re)build the constraints holding the jaws at the current opening."""
@@ -1296,6 +1342,7 @@ class Stitcher(Tool):
         c = self.client
         rel_p, rel_o = self._needle_in_tip()
         p.removeConstraint(self._lock, physicsClientId=c)
+        self._let_thread_through(self.jaws[self.needle_holder])
         # Parent: the needle at its origin; child: the tip body at the needle's pose in the
         # tip frame, so that changeConstraint's child pivot moves the needle in that frame.
         self._sweep_from = np.asarray(rel_p, dtype=float) - self._jaw_offset(self.needle_holder)
@@ -1358,6 +1405,8 @@ class Stitcher(Tool):
         if self._pending and self.opening == 0.0 and self._target == 0.0:
             self.pass_needle()
         if self._timer < 0.0:
+            if self._let_through:
+                self._restore_thread_contact()
             return
         if self._timer >= self.travel_time - 1e-12:
             self._start_sweep()
