@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 from backends.pybullet.scene import build_scene, pull_ends
-from backends.pybullet.suture import InvalidSutureParams, SutureParams, knotted_path
+from backends.pybullet.suture import InvalidSutureParams, Suture, SutureParams, knotted_path
 from backends.pybullet.tools import (
     HOOK_MOUTH,
     BentTipGrasper,
@@ -340,6 +340,20 @@ def test_needle_pass_carries_the_thread_across_the_jaw_gap() -> None:
         p.disconnect(physicsClientId=c)
 
 
+def _run_stitcher(st: Stitcher, sut: Suture, seconds: float) -> float:
+    """Step a lone stitcher and its thread for ``seconds``; the largest joint force the
+    thread's own constraints carried meanwhile (the oracle) [N]."""
+    import pybullet as p
+
+    peak = 0.0
+    for _ in range(round(seconds * 1000)):
+        st.step()
+        sut.pre_step()
+        p.stepSimulation(physicsClientId=st.client)
+        peak = max(peak, float(np.max(sut.tensions())))
+    return peak
+
+
 @pytest.mark.parametrize("carry", [0, 3])
 def test_a_thread_leaving_the_giving_jaw_outward_goes_through_it_with_the_needle(
     carry: int,
@@ -372,20 +386,10 @@ def test_a_thread_leaving_the_giving_jaw_outward_goes_through_it_with_the_needle
             handover_carry=carry,
         )  # fmt: skip
         st.collide_with(sut)
-        peak = 0.0
 
-        def run(seconds: float) -> None:
-            nonlocal peak
-            for _ in range(round(seconds * 1000)):
-                st.step()
-                sut.pre_step()
-                p.stepSimulation(physicsClientId=c)
-                peak = max(peak, float(np.max(sut.tensions())))
-
-        run(0.3)
-        assert peak < 0.05  # resting slack
+        assert _run_stitcher(st, sut, 0.3) < 0.05  # resting slack
         st.pass_needle()
-        run(st.travel_time + 0.2)
+        peak = _run_stitcher(st, sut, st.travel_time + 0.2)
         if carry == 0:
             assert st.needle_holder == 0 and len(st.stalls) == 1
             assert st.stalls[0].shortfall > 2e-3 and 0.8 * 5.0 < peak < 1.3 * 5.0
@@ -449,20 +453,10 @@ def test_a_needle_held_back_by_a_taut_thread_stops_short_at_the_drives_force(
             needle_drive_force=drive,
         )  # fmt: skip
         p.changeDynamics(sut.bodies[0], -1, mass=0.0, physicsClientId=c)  # the anchor
-        peak = 0.0
 
-        def run(seconds: float) -> None:
-            nonlocal peak
-            for _ in range(round(seconds * 1000)):
-                st.step()
-                sut.pre_step()
-                p.stepSimulation(physicsClientId=c)
-                peak = max(peak, float(np.max(sut.tensions())))
-
-        run(0.1)
-        settled, peak = peak, 0.0
+        settled = _run_stitcher(st, sut, 0.1)
         st.pass_needle()
-        run(st.travel_time + 0.2)
+        peak = _run_stitcher(st, sut, st.travel_time + 0.2)
         if drive == 5.0:
             assert settled < 1.0
             assert st.needle_holder == 0 and len(st.stalls) == 1
