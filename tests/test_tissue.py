@@ -253,6 +253,8 @@ def _tighten_loop(k_hole: float, pull: float = 1.0) -> tuple[float, float]:
         p.disconnect(physicsClientId=c)
 
 
+# slow: two thread runs, 10 s of the CI suite under load; `pytest -m slow` runs it
+@pytest.mark.slow
 def test_the_puncture_holes_hold_a_thread_pulled_back_over_the_wound() -> None:
     """The holes are eyelets: a stitch loop tightened back over the wound still passes
     through both of them (measured 0.5 mm at a 2 N pull) and under the surface. Without

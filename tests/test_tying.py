@@ -39,6 +39,9 @@ def _check_overhand(result: TieResult, jig: JigTie, chirality: str) -> None:
     assert pull.max_stretch < 0.05, pull
 
 
+# slow: 17 s of the CI suite under load; the trefoil's hold is also checked in CI by
+# test_suture_physics' overhand tightened to 2 N. `pytest -m slow` runs it.
+@pytest.mark.slow
 def test_overhand_knot_tied_by_tool_motion_on_a_jig_holds_2n() -> None:
     jig = JigTie()
     _check_overhand(tie_overhand_on_jig(jig), jig, "right")
