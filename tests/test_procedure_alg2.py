@@ -357,15 +357,15 @@ def test_algorithm_2_ties_a_square_knot_on_the_surgical_backend(tmp_path: Path) 
 
 @pytest.mark.slow
 @pytest.mark.parametrize(
-    ("seed", "sets", "check"),
+    ("seed", "sets", "check", "passed"),
     [
-        (0, [], "tension 0.20 N not reached within 27.0 mm"),
-        (14, ["hold_loop=false"], "tension 0.10 N not reached within 6.5 mm"),
+        (0, [], "tension 0.20 N not reached within 27.0 mm", True),
+        (14, ["hold_loop=false"], "tension 0.10 N not reached within 6.5 mm", False),
     ],
     ids=["held-loop-cinch", "loose-take-up"],
 )
 def test_a_missed_second_throw_is_caught_by_its_check_and_the_run_fails(
-    tmp_path: Path, seed: int, sets: list[str], check: str
+    tmp_path: Path, seed: int, sets: list[str], check: str, passed: bool
 ) -> None:
     """The main job on a seed whose second throw misses. The held loop (33 mm up), seed 0:
     the needle's end does not go through the loop, and the cinch does not draw it taut
@@ -387,44 +387,36 @@ def test_a_missed_second_throw_is_caught_by_its_check_and_the_run_fails(
     assert f"skill-failure:{check} of travel" in details
     entered = [m.data["dest"] for m in trace.messages(["/transitions"])]
     assert "autonomous/mirrored-knot.drop-loop" in entered
-    passed = any(d.endswith("mirrored-knot.pass-needle") for d in entered)
-    assert passed is check.startswith("tension 0.20 N")
+    assert any(d.endswith("mirrored-knot.pass-needle") for d in entered) is passed
     assert knot["type"] == "trefoil"
     assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("seed", [None, 1], ids=["default-seed", "seed-1"])
-def test_the_readme_main_job_ends_as_its_knot_is(tmp_path: Path, seed: int | None) -> None:
-    """``suture run procedures/square-knot.yaml`` as the README gives it: the procedure's
-    own backend (the stitched start) and the held-loop layout (mirrored loop 33 mm up).
-    On seed 1 it ends ``succeeded`` with a square knot that binds the stitch and lies
-    square (the second throw drawn along its securing direction, 7.1-7.3). On the default
-    seed 0 the needle's end misses the mirrored loop and the cinch's bound locks the
-    robots: ``failed``, with the first trefoil only. Either way the outcome agrees with
-    the ground truth, and the true tension stays under the limit all along."""
+def test_the_readme_seed_that_ties_the_square_knot(tmp_path: Path) -> None:
+    """``suture run procedures/square-knot.yaml --seed 1``, as the README gives it: the
+    procedure's own backend (the stitched start) and the held-loop layout (mirrored loop
+    33 mm up). It ends ``succeeded`` with a square knot that binds the stitch and lies
+    square (the second throw drawn along its securing direction, 7.1-7.3), the true
+    tension under the limit all along. (The default seed 0 locks in the mirrored cinch's
+    bound with the first trefoil only: the held-loop case of
+    ``test_a_missed_second_throw_is_caught_by_its_check_and_the_run_fails``.)"""
     import json
     import subprocess
     import sys
 
     out = tmp_path / "main"
     cmd = [sys.executable, "-m", "suture_engine.cli", "run", "procedures/square-knot.yaml"]
-    if seed is not None:
-        cmd += ["--seed", str(seed)]
-    res = subprocess.run([*cmd, "--out", str(out)], cwd=ROOT, capture_output=True, text=True)
+    res = subprocess.run(
+        [*cmd, "--seed", "1", "--out", str(out)], cwd=ROOT, capture_output=True, text=True
+    )
+    assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["backend"] == "pybullet-surgical-stitched"
-    assert summary["seed"] == (seed or 0)
+    assert summary["backend"] == "pybullet-surgical-stitched" and summary["seed"] == 1
     knot = summary["knot"]
-    if seed == 1:
-        assert res.returncode == 0, res.stdout[-2000:] + res.stderr[-2000:]
-        assert summary["outcome"] == "succeeded"
-        assert knot["type"] == "square" and knot["determinant"] == 9 and knot["v3"] == 0
-        assert knot["through_tissue"] and knot["lay"] == "square" and knot["post_straight"]
-    else:
-        assert res.returncode != 0
-        assert summary["outcome"] == "failed" and summary["final_state"] == "lock"
-        assert knot["type"] == "trefoil"
+    assert summary["outcome"] == "succeeded"
+    assert knot["type"] == "square" and knot["determinant"] == 9 and knot["v3"] == 0
+    assert knot["through_tissue"] and knot["lay"] == "square" and knot["post_straight"]
     assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
 
 
@@ -812,7 +804,7 @@ HELD_TAKE_UP_TIED_MM = 5.4
 """Held loop, 29 mm up (branched at the mirrored throw from one seed of each distinct
 run): the mirrored take-up drew taut after 4.7-5.4 mm on the four throws that tied the
 square (seeds 0, 1, 4, 8); with the needle hand-over fix, 33 mm up (the layout since),
-after 4.3-4.6 mm on the throws that tied the square (seeds 1, 2, 3, 5) [mm] ..."""
+after 4.3-4.7 mm on the throws that tied the square (seeds 1, 2, 3, 5, 7) [mm] ..."""
 HELD_TAKE_UP_MISSED_MM = 8.4
 """... and after 8.4 mm or more where it missed: seed 5, whose cinch drew taut with no
 second knot, and seed 13 (8.6 mm, in a branch whose window was widened to 10 mm) [mm]."""
