@@ -425,6 +425,75 @@ def test_a_thread_leaving_the_giving_jaw_outward_goes_through_it_with_the_needle
         p.disconnect(physicsClientId=c)
 
 
+@pytest.mark.parametrize("pass_thread", [False, True])
+def test_a_hand_over_does_not_pin_its_own_thread_on_the_receiving_jaw(pass_thread: bool) -> None:
+    """The thread doubles back at the needle: from the needle in jaw 0 it runs 3 mm along
+    -y, 6 mm along +x, then back along +y through the gap, 0.1 mm from jaw 1's inner face
+    (no gravity, nothing else: only contacts act). The hand-over sweeps the needle's
+    capsule into that strand. Without ``handover_pass_thread`` (the default, with which
+    the bundled procedures were measured) it presses the strand against jaw 1 and the
+    needle stops short, while the thread's own joints carry under a third of the drive's
+    force (a pinch, not a pull: the main job's seed 11); with it the needle reaches jaw 1.
+    Each in-jaw capsule
+    then collides again with every capsule it is clear of (PyBullet's contact query is the
+    oracle), and stays let through only where the two still overlap."""
+    import pybullet as p
+
+    from backends.pybullet.suture import Suture, configure_physics
+
+    c = p.connect(p.DIRECT)
+    try:
+        configure_physics(c)
+        p.setGravity(0, 0, 0, physicsClientId=c)  # no weight and no weight cancelling
+        prm = SutureParams(length=0.06, n_segments=20)
+        path = 1e-3 * np.array([[2, 48, 3], [2, -3, 3], [-4, -3, 3], [-4, 0, 3]], dtype=float)
+        sut = Suture.create(c, path, prm)
+        st = Stitcher.create(
+            c, "st", (0.0, 0.0, 0.0), needle_body=sut.needle_body, place_needle=False,
+            handover_pass_thread=pass_thread,
+        )  # fmt: skip
+        st.collide_with(sut)
+
+        def run(seconds: float) -> float:
+            peak = 0.0
+            for _ in range(round(seconds * 1000)):
+                st.step()
+                p.stepSimulation(physicsClientId=c)
+                peak = max(peak, float(np.max(sut.tensions())))
+            return peak
+
+        assert run(0.3) < 0.01  # laid out, at rest
+        st.pass_needle()
+        peak = run(st.travel_time + 0.2)
+        if not pass_thread:
+            assert st.needle_holder == 0 and len(st.stalls) == 1
+            assert st.stalls[0].shortfall > 1.5e-3 and peak < st.needle_drive_force / 3
+            return
+        needle, _ = p.getBasePositionAndOrientation(sut.needle_body, physicsClientId=c)
+        jaw1, _ = p.getBasePositionAndOrientation(st.jaws[1], physicsClientId=c)
+        assert st.needle_holder == 1 and not st.stalls and peak < 0.5
+        assert np.linalg.norm(np.asarray(needle) - jaw1) < 1e-3
+        in_jaw = sut.bodies[-2:]
+        p.performCollisionDetection(physicsClientId=c)
+        for a in in_jaw:
+            held = st._let_through.get(a, set())
+            for b in held:  # still let through: the two overlap
+                near = p.getClosestPoints(a, b, 0.0, physicsClientId=c)
+                assert min(pt[8] for pt in near) <= -st.CLEAR_OVERLAP
+            for i, b in enumerate(sut.bodies[:-3]):  # all others collide again
+                if b in held:
+                    continue
+                pos, orn = p.getBasePositionAndOrientation(b, physicsClientId=c)
+                there, _ = p.getBasePositionAndOrientation(a, physicsClientId=c)
+                p.resetBasePositionAndOrientation(b, there, orn, physicsClientId=c)
+                p.performCollisionDetection(physicsClientId=c)
+                touches = bool(p.getContactPoints(a, b, physicsClientId=c))
+                p.resetBasePositionAndOrientation(b, pos, orn, physicsClientId=c)
+                assert touches, (a, i)
+    finally:
+        p.disconnect(physicsClientId=c)
+
+
 @pytest.mark.parametrize("drive", [5.0, 50.0])
 def test_a_needle_held_back_by_a_taut_thread_stops_short_at_the_drives_force(
     drive: float,

@@ -262,7 +262,10 @@ def test_sigint_stops_the_sweep_and_resume_runs_only_the_rest(tmp_path: Path) ->
     import time
 
     out = tmp_path / "killed"
-    vary = "hold_time=uniform(400 ms, 400 ms)"
+    # runs of 4.4 s simulated (about a second of wall time or more each), so the signal
+    # lands while the second run is under way: with 0.8 s runs a fast machine finished
+    # the whole sweep between the first row and the signal
+    vary = "hold_time=uniform(4 s, 4 s)"
     cmd = [sys.executable, "-m", "suture_engine.cli", "sweep", str(STEPS), "--runs", "3"]
     cmd += ["--vary", vary, "--out", str(out), "--max-time", "5"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

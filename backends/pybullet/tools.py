@@ -1092,6 +1092,18 @@ class Stitcher(Tool):
     it hands the needle over, the giving jaw also lets through the ``handover_carry``
     capsules next to those, and each collides with it again once it is clear of it.
 
+    Those last capsules did still collide with the rest of their thread. Where the thread
+    doubled back at the needle, the hand-over then pressed a capsule lying outside the
+    jaws against the receiving jaw's face with the one at the needle, and the needle
+    stopped short at the drive's force while the thread's joints carried 0.35 N (a model
+    artefact: the main job's seed 11, capsule 36 of 40 pinned by capsule 39 at 5-6 N).
+    With ``handover_pass_thread``, while a hand-over carries them, the capsules inside the
+    jaw pass through the rest of their thread too, and collide with each capsule again
+    once clear of it. It is off by default: it changes the contacts of every hand-over, so
+    it re-deals every run on the thread from the first one on (the main job's seed 12 still
+    ties its square; seed 11 then ends ``succeeded`` with one trefoil, its mirrored throw's
+    check fooled), and the bundled procedures' layouts and checks were measured without it.
+
     Attributes:
         gap: distance between the closed jaws along the tip's x [m].
         open_width: how far each jaw moves out when opening [m].
@@ -1101,6 +1113,8 @@ class Stitcher(Tool):
         needle_drive_force: the most force the hand-over's drive applies to the needle [N].
         handover_carry: how many thread capsules, next to the ones that never touch the
             jaws, the giving jaw lets through during a hand-over [-].
+        handover_pass_thread: whether, during a hand-over, the capsules inside the jaw
+            pass through the rest of their thread (off by default; see above).
         stalls: the hand-overs that stopped short, in order.
     """
 
@@ -1118,6 +1132,7 @@ class Stitcher(Tool):
     opening: float = 0.0
     needle_drive_force: float = 5.0
     handover_carry: int = 3
+    handover_pass_thread: bool = False
     stalls: list[NeedleStall] = field(default_factory=list)
     stalled: bool = False
     """The last hand-over stopped short (until the jaws open or another is asked for)."""
@@ -1133,8 +1148,12 @@ class Stitcher(Tool):
     _sweep_orientation: Quat = _IDENTITY
     _carried: list[int] = field(default_factory=list)
     """The thread's capsules a giving jaw lets through (see the class docstring)."""
+    _in_jaw: list[int] = field(default_factory=list)
+    """The thread's capsules at the needle, inside its jaw (the jaws never touch them)."""
+    _thread: list[int] = field(default_factory=list)
+    """All the thread's capsules, tail to needle."""
     _let_through: dict[int, set[int]] = field(default_factory=dict)
-    """Per jaw body, the carried capsules it does not collide with yet."""
+    """Per jaw body (or in-jaw capsule), the capsules it does not collide with yet."""
 
     @classmethod
     def create(
@@ -1210,6 +1229,23 @@ class Stitcher(Tool):
             for body in (b for b in others if b >= 0):
                 p.setCollisionFilterPair(jaw, body, -1, -1, 0, physicsClientId=c)
         self._carried = list(suture.bodies[max(n - spare - self.handover_carry, 0) : n - spare])
+        self._in_jaw = list(suture.bodies[max(n - spare, 0) :])
+        self._thread = list(suture.bodies)
+
+    def _let_thread_pass(self) -> None:
+        """The capsules inside the jaw with the needle stop colliding with the rest of
+        their thread (all but their neighbours, which never collide) while a hand-over
+        carries them: on the model's terms they lie inside the jaw, so they cannot press
+        thread lying outside it against the receiving jaw."""
+        import pybullet as p
+
+        index = {b: i for i, b in enumerate(self._thread)}
+        for a in self._in_jaw:
+            held = self._let_through.setdefault(a, set())
+            for b in self._thread:
+                if abs(index[a] - index[b]) > 1 and b not in self._in_jaw and b not in held:
+                    p.setCollisionFilterPair(a, b, -1, -1, 0, physicsClientId=self.client)
+                    held.add(b)
 
     def _let_thread_through(self, jaw: int) -> None:
         """The giving ``jaw`` stops colliding with the carried capsules (a hand-over)."""
@@ -1222,8 +1258,8 @@ class Stitcher(Tool):
                 held.add(body)
 
     def _restore_thread_contact(self) -> None:
-        """Each let-through capsule clear of its jaw (``CLEAR_OVERLAP``) collides with it
-        again."""
+        """Each let-through capsule clear of its jaw, or of the in-jaw capsule it passed
+        (``CLEAR_OVERLAP``), collides with it again."""
         import pybullet as p
 
         c = self.client
@@ -1343,6 +1379,8 @@ class Stitcher(Tool):
         rel_p, rel_o = self._needle_in_tip()
         p.removeConstraint(self._lock, physicsClientId=c)
         self._let_thread_through(self.jaws[self.needle_holder])
+        if self.handover_pass_thread:
+            self._let_thread_pass()
         # Parent: the needle at its origin; child: the tip body at the needle's pose in the
         # tip frame, so that changeConstraint's child pivot moves the needle in that frame.
         self._sweep_from = np.asarray(rel_p, dtype=float) - self._jaw_offset(self.needle_holder)
