@@ -641,6 +641,33 @@ def test_the_square_knots_mirrored_throw_that_ties_nothing_stops_the_run(tmp_pat
 
 
 @pytest.mark.slow
+def test_the_square_knots_mirrored_loop_left_on_the_arm_is_caught(tmp_path: Path) -> None:
+    """Algorithm 3's square knot, seed 5 (2026-12-02; seed 1 before the model fixes): the
+    first throw ties its trefoil, the mirrored throw's loop stays on the arm and its
+    slide-off goes taut within a few millimetres; the floor fails the step and the robots
+    lock (the run stops ``failed``) instead of claiming a square knot. The ground truth
+    agrees: the first trefoil only."""
+    summary, trace = run_cli(
+        tmp_path,
+        str(ROOT / "procedures" / "square-knot.yaml"),
+        "--set",
+        "algorithm=3",
+        "--seed",
+        "5",
+        "--max-time",
+        "200",
+    )
+    assert summary["outcome"] == "failed" and summary["final_state"] == "lock"
+    events = [m.data for m in trace.messages(["/events"])]
+    faults = [e for e in events if e["kind"] == "unpredictable"]
+    assert faults[-1]["state"] == "autonomous/mirrored-knot.slide-off", faults
+    assert faults[-1]["detail"].startswith("skill-failure:tension 1.50 N reached after only")
+    assert "done:simple-knot.slide-off" in [e["detail"] for e in events]
+    assert summary["knot"]["type"] == "trefoil"
+    assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
+
+
+@pytest.mark.slow
 def test_algorithm_3_ties_a_square_knot_on_seed_2(tmp_path: Path) -> None:
     """Algorithm 3's square knot, seed 2 (2026-12-02): the mirrored throw ties the square
     (in ``clear-jaws``, by the ground truth per step); the run ends ``succeeded`` and the
