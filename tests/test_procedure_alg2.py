@@ -341,13 +341,13 @@ def test_a_second_throw_that_is_not_mirrored_ties_a_granny_knot(tmp_path: Path) 
 @pytest.mark.slow
 def test_algorithm_2_ties_a_square_knot_on_the_surgical_backend(tmp_path: Path) -> None:
     """The main job's procedure on the thread, from the stitched start, in the loose
-    layout (``hold_loop=false``; seed 4, which lies square with OpenBLAS' pinned kernel;
-    seed 1 did on the AVX-512 machines before the pin): the first throw, then its mirror
-    image, and the ground-truth classifier finds a square knot (determinant 9, v3 0: two
-    trefoils of opposite handedness) that binds the stitch, with the true tension under the
-    derived limit all along."""
+    layout (``hold_loop=false``; seed 0 since the model's hook and hand-over fixes of
+    2026-12-02, seed 4 before them): the first throw, then its mirror image, and the
+    ground-truth classifier finds a square knot (determinant 9, v3 0: two trefoils of
+    opposite handedness) that binds the stitch, with the true tension under the derived
+    limit all along."""
     summary, knot = _run_on_thread(
-        tmp_path, "square-knot.yaml", 4, ["stitch=false", "hold_loop=false"], 220
+        tmp_path, "square-knot.yaml", 0, ["stitch=false", "hold_loop=false"], 220
     )
     assert summary["outcome"] == "succeeded"
     assert knot["type"] == "square" and knot["determinant"] == 9 and knot["v3"] == 0
@@ -743,52 +743,27 @@ def test_a_single_throw_is_tugged_and_must_draw_taut_soon(
 
 
 @pytest.mark.slow
-def test_a_perturbed_throw_that_tied_nothing_is_caught_by_its_tug(tmp_path: Path) -> None:
-    """A single throw perturbed as ``benchmarks/knot_success.py --single`` run 5 (seed
-    1460747719: base errors 0.6 and 0.8 mm, joint friction x0.93) ties nothing; before the
-    tug it ended ``succeeded``. Its tug does not draw the strand taut within the bound, the
-    step fails and the robots lock (the run stops ``failed``). The ground truth agrees: no
-    knot. The true tension stays under the limit."""
-    import json
-
-    from suture_engine.runtime.run import run_procedure
+def test_a_first_throw_that_tied_nothing_is_caught_by_its_tug(tmp_path: Path) -> None:
+    """The main job, seed 15 (2026-12-02, the held loop 33 mm up): the first throw ties
+    nothing, and its tug does not draw the strand taut within 28.6 mm; the step fails and
+    the robots lock (the run stops ``failed``) before the mirrored throw. The ground truth
+    agrees: no knot. The true tension stays under the limit. (This test ran a perturbed
+    single throw that tied nothing, `knot_success.py --single` run 5; the model's hook and
+    hand-over fixes re-dealt it, and it now ties its trefoil.)"""
     from suture_engine.trace.reader import TraceReader
 
-    out = tmp_path / "run"
-    run_procedure(
-        ROOT / "procedures" / "knot-algorithm-2.yaml",
-        backend="pybullet-surgical-stitched",
-        seed=1460747719,
-        sets=["stitch=false"],
-        out=out,
-        max_time_s=100,
-        backend_options={
-            "base_error": {
-                "endobot_1": (
-                    0.0005132334704419497,
-                    0.00020623419746105105,
-                    -0.00024467348723075785,
-                ),
-                "endobot_2": (
-                    1.9440497395740745e-05,
-                    0.0007897906858387944,
-                    -0.00016989533703969432,
-                ),
-            },
-            "friction_scale": 0.9274261691983059,
-            "suture_stiffness_scale": 0.9142530303858456,
-        },
-    )
-    summary = json.loads((out / "summary.json").read_text())
+    summary, knot = _run_on_thread(tmp_path, "square-knot.yaml", 15, [], 220)
     assert summary["outcome"] == "failed" and summary["final_state"] == "lock"
     faults = [
         m.data
-        for m in TraceReader(out / "trace.mcap").messages(["/events"])
+        for m in TraceReader(tmp_path / "run" / "trace.mcap").messages(["/events"])
         if m.data["kind"] == "unpredictable"
     ]
-    assert faults[-1]["state"] == "autonomous/tug", faults
-    assert faults[-1]["detail"].startswith("skill-failure:tension 0.30 N not reached within")
-    assert summary["knot"]["type"] == "unknot"
+    assert faults[-1]["state"] == "autonomous/simple-knot.tug", faults
+    assert (
+        faults[-1]["detail"] == "skill-failure:tension 0.30 N not reached within 28.6 mm of travel"
+    )
+    assert knot["type"] == "unknot"
     assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
 
 
