@@ -611,58 +611,41 @@ def test_a_perturbed_trefoil_that_draws_taut_early_passes_the_floor(tmp_path: Pa
     assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
 
 
-@pytest.mark.slow
-def test_the_square_knots_mirrored_throw_that_ties_nothing_stops_the_run(tmp_path: Path) -> None:
-    """Algorithm 3's square knot, seed 1 (2026-12-02, after the model's hook and hand-over
-    fixes): the first throw ties its trefoil, the mirrored loop comes off the arm with no
-    second knot, and the tightening's guard finds nothing to draw taut; the step fails and
-    the robots lock (the run stops ``failed``) instead of claiming a square knot. The
-    ground truth agrees: the first trefoil only. (Before the fixes the same seed's loop
-    stayed on the arm and the mirrored slide-off's floor caught it.)"""
-    summary, trace = run_cli(
-        tmp_path,
-        str(ROOT / "procedures" / "square-knot.yaml"),
-        "--set",
-        "algorithm=3",
-        "--seed",
-        "1",
-        "--max-time",
-        "200",
-    )
-    assert summary["outcome"] == "failed" and summary["final_state"] == "lock"
-    events = [m.data for m in trace.messages(["/events"])]
-    faults = [e for e in events if e["kind"] == "unpredictable"]
-    assert faults[-1]["state"] == "autonomous/mirrored-knot.tighten", faults
-    assert faults[-1]["detail"].startswith("skill-failure:tension 0.50 N not reached")
-    assert "done:simple-knot.slide-off" in [e["detail"] for e in events]
-    assert "done:mirrored-knot.slide-off" in [e["detail"] for e in events]
-    assert summary["knot"]["type"] == "trefoil"
-    assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
+def _alg3_square_knot(tmp_path: Path, seed: int) -> tuple[dict[str, Any], Any]:
+    """``suture run procedures/square-knot.yaml --set algorithm=3 --seed SEED``."""
+    square_knot = str(ROOT / "procedures" / "square-knot.yaml")
+    args = ["--set", "algorithm=3", "--seed", str(seed), "--max-time", "200"]
+    return run_cli(tmp_path, square_knot, *args)
 
 
 @pytest.mark.slow
-def test_the_square_knots_mirrored_loop_left_on_the_arm_is_caught(tmp_path: Path) -> None:
-    """Algorithm 3's square knot, seed 5 (2026-12-02; seed 1 before the model fixes): the
-    first throw ties its trefoil, the mirrored throw's loop stays on the arm and its
-    slide-off goes taut within a few millimetres; the floor fails the step and the robots
-    lock (the run stops ``failed``) instead of claiming a square knot. The ground truth
-    agrees: the first trefoil only."""
-    summary, trace = run_cli(
-        tmp_path,
-        str(ROOT / "procedures" / "square-knot.yaml"),
-        "--set",
-        "algorithm=3",
-        "--seed",
-        "5",
-        "--max-time",
-        "200",
-    )
+@pytest.mark.parametrize(
+    ("seed", "step", "check"),
+    [
+        (1, "tighten", "skill-failure:tension 0.50 N not reached"),
+        (5, "slide-off", "skill-failure:tension 1.50 N reached after only"),
+    ],
+    ids=["loop-off-no-knot", "loop-left-on-the-arm"],
+)
+def test_the_square_knots_mirrored_throw_that_ties_nothing_stops_the_run(
+    tmp_path: Path, seed: int, step: str, check: str
+) -> None:
+    """Algorithm 3's square knot (2026-12-02, after the model's hook and hand-over fixes):
+    the first throw ties its trefoil and the mirrored throw ties nothing; a check fails
+    the step and the robots lock (the run stops ``failed``) instead of claiming a square
+    knot. Seed 1: the mirrored loop comes off the arm with no second knot, and the
+    tightening's guard finds nothing to draw taut. Seed 5 (seed 1 before the fixes): the
+    loop stays on the arm, and the slide-off goes taut within a few millimetres, under its
+    floor. The ground truth agrees: the first trefoil only."""
+    summary, trace = _alg3_square_knot(tmp_path, seed)
     assert summary["outcome"] == "failed" and summary["final_state"] == "lock"
     events = [m.data for m in trace.messages(["/events"])]
     faults = [e for e in events if e["kind"] == "unpredictable"]
-    assert faults[-1]["state"] == "autonomous/mirrored-knot.slide-off", faults
-    assert faults[-1]["detail"].startswith("skill-failure:tension 1.50 N reached after only")
-    assert "done:simple-knot.slide-off" in [e["detail"] for e in events]
+    assert faults[-1]["state"] == f"autonomous/mirrored-knot.{step}", faults
+    assert faults[-1]["detail"].startswith(check)
+    details = [e["detail"] for e in events]
+    assert "done:simple-knot.slide-off" in details
+    assert ("done:mirrored-knot.slide-off" in details) is (step == "tighten")
     assert summary["knot"]["type"] == "trefoil"
     assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
 
@@ -673,16 +656,7 @@ def test_algorithm_3_ties_a_square_knot_on_seed_2(tmp_path: Path) -> None:
     (in ``clear-jaws``, by the ground truth per step); the run ends ``succeeded`` and the
     simulated thread holds a square knot (determinant 9, v3 0) that binds the stitch, with
     the true tension under the limit."""
-    summary, _ = run_cli(
-        tmp_path,
-        str(ROOT / "procedures" / "square-knot.yaml"),
-        "--set",
-        "algorithm=3",
-        "--seed",
-        "2",
-        "--max-time",
-        "200",
-    )
+    summary, _ = _alg3_square_knot(tmp_path, 2)
     assert summary["outcome"] == "succeeded" and summary["final_state"] == "tied"
     knot = summary["knot"]
     assert knot["type"] == "square" and knot["determinant"] == 9 and knot["v3"] == 0
