@@ -255,6 +255,11 @@ class Row(NamedTuple):
     path: str = ""
     """A digest of the run's transitions (each state entered and its tick; see
     :func:`path_digest`): two runs with the same one changed state on the same ticks."""
+    peak_true_tension_N: float = math.nan
+    """The thread's true peak tension [N] (ground truth, the summary's
+    ``peak_true_tension_N``; NaN when the run has none). ``max_tension_N`` is the base
+    sensors' estimate, which the tools meeting can raise and a pinch between them can
+    hide: the tension limit is checked against this one."""
 
 
 def make_jobs(
@@ -388,7 +393,26 @@ def run_one(job: Job) -> Row:
         job.algorithm, job.run, job.seed, s.outcome, kt, ok,
         float(s.max_tension_N), float(s.sim_time_s), time.perf_counter() - start, *common, "",
         fault, path_digest(Path(job.out_dir) / "trace.mcap"),
+        float(s.metrics.get("peak_true_tension_N", math.nan)),
     )  # fmt: skip
+
+
+def true_peaks(rows: Sequence[Row]) -> dict[int, tuple[float, int, float]]:
+    """Per algorithm: the largest true peak tension [N], its run, and the largest
+    estimated peak [N] (for comparison). Rows without a true peak (NaN) are left out;
+    an algorithm with none is absent."""
+    out: dict[int, tuple[float, int, float]] = {}
+    for alg in sorted({r.algorithm for r in rows}):
+        mine = [r for r in rows if r.algorithm == alg]
+        known = [r for r in mine if math.isfinite(r.peak_true_tension_N)]
+        if not known:
+            continue
+        top = max(known, key=lambda r: r.peak_true_tension_N)
+        est = max(
+            (r.max_tension_N for r in mine if math.isfinite(r.max_tension_N)), default=math.nan
+        )
+        out[alg] = (top.peak_true_tension_N, top.run, est)
+    return out
 
 
 class Tally(NamedTuple):
@@ -463,7 +487,7 @@ def _bool(text: str) -> bool:
 _TYPES: dict[str, Callable[[str], Any]] = {
     "algorithm": int, "run": int, "seed": int, "success": _bool, "max_tension_N": float,
     "sim_time_s": float, "wall_time_s": float, "friction_scale": float,
-    "stiffness_scale": float, "base_error_mm": float,
+    "stiffness_scale": float, "base_error_mm": float, "peak_true_tension_N": float,
 }  # fmt: skip
 """How each column of ``results.csv`` reads back (the others are text)."""
 
@@ -478,8 +502,9 @@ def read_csv(path: Path) -> list[Row]:
         return []
     with path.open(newline="", encoding="utf-8") as fh:
         table = list(csv.reader(fh))
-    # a table written before the last_fault or path column reads with them empty
-    if not table or tuple(table[0]) not in (Row._fields, Row._fields[:-1], Row._fields[:-2]):
+    # a table written before the last_fault, path or peak_true_tension_N column reads
+    # with them empty (NaN)
+    if not table or tuple(table[0]) not in (Row._fields[: len(Row._fields) - k] for k in range(4)):
         raise ValueError(f"{path}: not a results table (header {table[:1]})")
     fields = tuple(table[0])
     rows = []
@@ -662,6 +687,11 @@ def main(argv: Sequence[str]) -> int:
         )
     for alg, steps in stops(rows).items():
         print(f"algorithm {alg}, where the failed runs stopped: {steps}")
+    for alg, (peak, run, estimate) in true_peaks(rows).items():
+        print(
+            f"algorithm {alg}, true tension peak {peak:.2f} N (run {run}); "
+            f"the base estimates' peak {estimate:.2f} N"
+        )
     print(f"[{time.perf_counter() - t0:.0f} s wall; rows in {args.out / 'results.csv'}]")
     return 0
 

@@ -194,12 +194,14 @@ def test_results_csv_reads_back_as_the_rows_written(tmp_path: Path) -> None:
         ks.Row(2, 0, 9, "error", "", False, float("nan"), 0.0, 2.5, 0.7, 1.0, 1.4, "E: x, y"),
         ks.Row(3, 0, 4, "succeeded", "square", True, 1.0, 150.0, 300.0, 1.0, 1.0, 0.5, ""),
     ]
+    rows = [r._replace(peak_true_tension_N=0.9) if r.error == "" else r for r in rows]
     path = tmp_path / "results.csv"
     ks.write_csv(rows, path)
     back = ks.read_csv(path)
     assert [r.run for r in back] == [0, 1, 0]  # sorted by algorithm, then run
     assert back[1] == rows[0] and back[2] == rows[2]
     assert back[0].error == "E: x, y" and math.isnan(back[0].max_tension_N)
+    assert math.isnan(back[0].peak_true_tension_N) and back[1].peak_true_tension_N == 0.9
     assert not list(tmp_path.glob("*.tmp"))
     assert ks.read_csv(tmp_path / "none.csv") == []
 
@@ -227,7 +229,7 @@ def test_a_table_written_before_the_last_fault_column_reads_with_it_empty(
     tmp_path: Path,
 ) -> None:
     path = tmp_path / "results.csv"
-    header = ",".join(ks.Row._fields[:-2])  # without last_fault (and path)
+    header = ",".join(ks.Row._fields[:-3])  # without last_fault (path, true peak)
     path.write_text(header + "\n2,3,1695199924,failed,unknot,False,1.59,85.35,137.5,1.0,1.0,0.0,\n")
     (row,) = ks.read_csv(path)
     assert (row.run, row.outcome, row.last_fault) == (3, "failed", "")
@@ -340,3 +342,28 @@ def test_a_table_written_before_the_path_column_reads_with_it_empty(tmp_path: Pa
     path.write_text("\n".join(cut) + "\n")
     (row,) = ks.read_csv(path)
     assert (row.last_fault, row.path) == ("x: y", "")
+
+
+def test_a_table_written_before_the_true_peak_column_reads_it_as_nan(tmp_path: Path) -> None:
+    path = tmp_path / "results.csv"
+    ks.write_csv([_row(2, True)._replace(last_fault="x: y", path="abc")], path)
+    lines = path.read_text().splitlines()
+    path.write_text("\n".join(",".join(line.split(",")[:-1]) for line in lines) + "\n")
+    (row,) = ks.read_csv(path)
+    assert (row.last_fault, row.path) == ("x: y", "abc")
+    assert math.isnan(row.peak_true_tension_N)
+
+
+def test_the_true_peak_is_reported_apart_from_the_estimate(tmp_path: Path) -> None:
+    # an emergency lock where the tools met: the estimate is high, the thread slack; the
+    # true peak is elsewhere (run 0's 5.23 N with the estimate at 2.27 N, 2026-12-03)
+    rows = [
+        _row(2, False, "failed")._replace(run=0, max_tension_N=2.27, peak_true_tension_N=5.23),
+        _row(2, False, "failed")._replace(run=17, max_tension_N=6.38, peak_true_tension_N=0.02),
+        _row(2, True)._replace(run=3, max_tension_N=1.0),  # no true peak (NaN): left out
+        _row(3, True)._replace(run=1),
+    ]
+    path = tmp_path / "results.csv"
+    ks.write_csv(rows, path)
+    back = ks.read_csv(path)
+    assert ks.true_peaks(back) == {2: (5.23, 0, 6.38)}
