@@ -335,13 +335,14 @@ def test_the_tally_counts_runs_of_one_path_once() -> None:
 
 def test_a_table_written_before_the_path_column_reads_with_it_empty(tmp_path: Path) -> None:
     path = tmp_path / "results.csv"
-    rows = [_row(2, True)._replace(last_fault="x: y")]
+    rows = [_row(2, True)._replace(last_fault="x: y", path="abc", peak_true_tension_N=0.5)]
     ks.write_csv(rows, path)
     lines = path.read_text().splitlines()
-    cut = [",".join(line.split(",")[:-1]) for line in lines]  # drop the path column
+    cut = [",".join(line.split(",")[:-2]) for line in lines]  # drop path (and true peak)
     path.write_text("\n".join(cut) + "\n")
     (row,) = ks.read_csv(path)
     assert (row.last_fault, row.path) == ("x: y", "")
+    assert math.isnan(row.peak_true_tension_N)
 
 
 def test_a_table_written_before_the_true_peak_column_reads_it_as_nan(tmp_path: Path) -> None:
@@ -356,9 +357,9 @@ def test_a_table_written_before_the_true_peak_column_reads_it_as_nan(tmp_path: P
 
 def test_the_true_peak_is_reported_apart_from_the_estimate(tmp_path: Path) -> None:
     # an emergency lock where the tools met: the estimate is high, the thread slack; the
-    # true peak is elsewhere (run 0's 5.23 N with the estimate at 2.27 N, 2026-12-03)
+    # true peak is elsewhere (run 0's 5.23 N with the estimate at 1.59 N, 2026-12-03)
     rows = [
-        _row(2, False, "failed")._replace(run=0, max_tension_N=2.27, peak_true_tension_N=5.23),
+        _row(2, False, "failed")._replace(run=0, max_tension_N=1.59, peak_true_tension_N=5.23),
         _row(2, False, "failed")._replace(run=17, max_tension_N=6.38, peak_true_tension_N=0.02),
         _row(2, True)._replace(run=3, max_tension_N=1.0),  # no true peak (NaN): left out
         _row(3, True)._replace(run=1),
