@@ -882,6 +882,7 @@ class BentTipGrasper(Grasper):
     _link_drive: int = -1
     _shaft: tuple[Vec3, Quat] = ((0.0, 0.0, 0.1), _IDENTITY)
     _passed: dict[int, list[int]] = field(default_factory=dict)
+    _clearing: dict[int, set[int]] = field(default_factory=dict)
     _filtered_for: int = -3
     _collides: tuple[bool, bool] = (False, False)
 
@@ -974,7 +975,13 @@ class BentTipGrasper(Grasper):
     def _filter_thread(self) -> None:
         """Per thread capsule and part, a pair filter: collide when the part collides,
         except with the held capsule and its ``spare`` neighbours (a pair filter overrides
-        the group mask, so a passing part gets every pair off)."""
+        the group mask, so a passing part gets every pair off).
+
+        A pair is turned on only once the capsule is clear of the part: until then it
+        waits in ``_clearing`` (see :meth:`_clear_passed`). A capsule the jaws held lies
+        inside them; turned on there at the release, the contact's penetration recovery
+        threw it out in one step, and the thread's joints read 12.1 N for one step (a
+        perturbed run of algorithm 3, the jaws opening on the tail)."""
         import pybullet as p
 
         if self.suture is None:
@@ -983,19 +990,44 @@ class BentTipGrasper(Grasper):
         if held == self._filtered_for and self._passed:
             return
         bodies = self.suture.bodies
+        c = self.client
         for part, on in zip((self.link_body, self.body), self._collides, strict=True):
             passed = self._passed.setdefault(part, [])
             if len(passed) != len(bodies):
                 passed[:] = [-1] * len(bodies)
+            clearing = self._clearing.setdefault(part, set())
             for i, body in enumerate(bodies):
                 near = held >= 0 and abs(i - held) <= self.spare
                 enable = int(on and not near)
-                if passed[i] != enable:
-                    p.setCollisionFilterPair(
-                        part, body, -1, -1, enable, physicsClientId=self.client
-                    )
-                    passed[i] = enable
+                if not enable:
+                    clearing.discard(i)
+                if passed[i] == enable or i in clearing:
+                    continue
+                if enable and p.getClosestPoints(part, body, 0.0, physicsClientId=c):
+                    # inside the part (or touching it): passable until clear
+                    clearing.add(i)
+                    if passed[i] != 0:
+                        p.setCollisionFilterPair(part, body, -1, -1, 0, physicsClientId=c)
+                        passed[i] = 0
+                    continue
+                p.setCollisionFilterPair(part, body, -1, -1, enable, physicsClientId=c)
+                passed[i] = enable
         self._filtered_for = held
+
+    def _clear_passed(self) -> None:
+        """Turn on each waiting pair (``_clearing``) whose capsule is now clear of the part
+        (no closest point at or under zero distance)."""
+        import pybullet as p
+
+        assert self.suture is not None
+        c = self.client
+        bodies = self.suture.bodies
+        for part, clearing in self._clearing.items():
+            for i in sorted(clearing):
+                if not p.getClosestPoints(part, bodies[i], 0.0, physicsClientId=c):
+                    p.setCollisionFilterPair(part, bodies[i], -1, -1, 1, physicsClientId=c)
+                    self._passed[part][i] = 1
+                    clearing.discard(i)
 
     def step(self) -> None:
         """Advance the jaws (as :meth:`Grasper.step`) and keep the held capsules passable."""
@@ -1003,6 +1035,8 @@ class BentTipGrasper(Grasper):
         self._update_collision()
         if any(self._collides) and self.held_segment != self._filtered_for:
             self._filter_thread()
+        if self.suture is not None and any(self._clearing.values()):
+            self._clear_passed()
 
     def set_bend(self, bend_x: float, bend_y: float) -> None:
         """Command the universal joint's two angles [rad].
