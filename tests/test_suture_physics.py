@@ -752,19 +752,21 @@ def test_a_bent_grasper_lets_go_of_the_thread_without_throwing_it_out() -> None:
     before), the penetration recovery throws the capsule out in one step: here the
     thread's joints then read several newtons (12.1 N for one step in a perturbed run of
     algorithm 3, the jaws opening on the tail)."""
-    waited, inside, clear_on = _bent_release(at_once=False)
-    at_once, inside_too, _ = _bent_release(at_once=True)
+    waited, inside, waiting, turned_on = _bent_release(at_once=False)
+    at_once, inside_too, _, _ = _bent_release(at_once=True)
     assert inside and inside_too  # the held capsule lay inside the jaws at the release
     assert waited < 0.3
     assert at_once > 3.0  # the artefact the waiting removes
-    assert clear_on  # once clear of the jaws, the capsule collides with them again
+    assert waiting  # one step after the release the capsule is still inside: its pair off
+    assert turned_on  # 50 steps on it is clear, and its pair is on again
 
 
-def _bent_release(at_once: bool) -> tuple[float, bool, bool]:
+def _bent_release(at_once: bool) -> tuple[float, bool, bool, bool]:
     """Peak thread tension [N] over 50 steps after a mounted, bent grasper opens on the
-    thread; whether the held capsule lay inside the jaws then; whether, 300 steps after
-    the jaws were unbent off the thread, every clear capsule's pair is on again.
-    ``at_once``: turn the jaws' pair with the released capsules on at the release."""
+    thread; whether the held capsule lay inside the jaws then; whether one step after the
+    release it still did, with its pair off (waiting); whether after the 50 steps it is
+    clear of the jaws with its pair on. ``at_once``: turn the jaws' pairs with every
+    capsule on at the release."""
     import pybullet as p
 
     from backends.pybullet.suture import configure_physics
@@ -811,17 +813,17 @@ def _bent_release(at_once: bool) -> tuple[float, bool, bool]:
             for part in (tool.body, tool.link_body):
                 for b in sut.bodies:
                     p.setCollisionFilterPair(part, b, -1, -1, 1, physicsClientId=c)
-        peak = step(50)
-        tool.set_bend(0.0, 0.0)  # straight: no part collides; then bent again, off the thread
-        step(300)
-        tool.set_bend(0.8, 0.0)
-        step(300)
-        clear_on = all(
-            tool._passed[part][i] == 1
-            for part in (tool.body, tool.link_body)
-            for i, b in enumerate(sut.bodies)
-            if not p.getClosestPoints(part, b, 0.0, physicsClientId=c)
-        )
-        return peak, inside, clear_on
+        body = sut.bodies[held]
+
+        def state() -> tuple[bool, bool]:
+            overlaps = bool(p.getClosestPoints(tool.body, body, 0.0, physicsClientId=c))
+            return overlaps, tool._passed[tool.body][held] == 1
+
+        peak = step(1)
+        overlaps, on = state()
+        waiting = overlaps and not on
+        peak = max(peak, step(49))
+        overlaps, on = state()
+        return peak, inside, waiting, not overlaps and on
     finally:
         p.disconnect(physicsClientId=c)
