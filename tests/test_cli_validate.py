@@ -122,7 +122,8 @@ def test_validate_imports_no_heavy_module() -> None:
         "from suture_engine.validation.report import validate_command\n"
         "rc = validate_command([Path(p) for p in sorted(glob.glob('procedures/*.yaml'))],"
         " out=io.StringIO())\n"
-        "heavy = ('pint', 'numpy', 'scipy', 'pybullet', 'matplotlib', 'osqp', 'mcap', 'rich')\n"
+        "heavy = ('pint', 'numpy', 'scipy', 'pybullet', 'matplotlib', 'osqp', 'mcap', 'rich',"
+        " 'numba')\n"
         "print(rc, [m for m in heavy if m in sys.modules])\n"
     )
     result = subprocess.run(

@@ -378,3 +378,147 @@ def test_active_rows_and_slack_match_a_dense_recomputation() -> None:
         assert np.array_equal(res.qdot, np.clip(z[:4], lo[:4], hi[:4]))
         seen.update(res.active)
     assert any(n.startswith("joint_bound") for n in seen)  # the box was reached too
+
+
+def _dense_oracle(
+    qp: ConstrainedQP, inst: dict
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """(P, q, A, l, u) built densely with numpy from the module docstring's formulas,
+    independently of the compiled assembly."""
+    J, x, q = inst["jacobian"], inst["x"], inst["q"]
+    w, lim = qp.weights, qp.limits
+    n, m = qp.n, qp.m
+    P = np.zeros((n, n))
+    P[:4, :4] = J.T @ np.diag(w.task) @ J + w.damping * np.eye(4)
+    P[4:, 4:] = w.slack * np.eye(n - 4)
+    vref = np.zeros(4)
+    if inst.get("x_target") is not None:
+        vref = vref + w.position_gain * (inst["x_target"] - x)
+    if inst.get("v_target") is not None:
+        vref = vref + inst["v_target"]
+    qv = np.zeros(n)
+    qv[:4] = -J.T @ np.diag(w.task) @ vref
+    # joint box: position limits over one horizon, singularity margins, speed limits
+    lo = (lim.q_min - q) / lim.horizon
+    hi = (lim.q_max - q) / lim.horizon
+    edge = np.pi / 2 - lim.q2_margin
+    lo[1] = max(lo[1], (-edge - q[1]) / lim.singular_time_constant)
+    hi[1] = min(hi[1], (edge - q[1]) / lim.singular_time_constant)
+    lo[3] = max(lo[3], (lim.q4_min - q[3]) / lim.singular_time_constant)
+    lo = np.clip(lo, -lim.qd_max, lim.qd_max)
+    hi = np.maximum(np.clip(hi, -lim.qd_max, lim.qd_max), lo)
+    A = np.zeros((m, n))
+    A[:4, :4] = np.eye(4)
+    A[4:, 4:] = np.eye(m - 4)
+    lv = np.full(m, -INF)
+    uv = np.full(m, INF)
+    lv[:4], uv[:4] = lo, hi
+    r = 4
+    for fx in qp.fixtures:
+        rows = slice(r, r + fx.rows)
+        A[rows, :4] = fx.jacobian(x) @ J
+        uv[rows] = -w.fixture_gain * fx.value(x)
+        if fx.kind == "eq":
+            lv[rows] = uv[rows]
+        r += fx.rows
+    if qp.extension_rate and inst.get("exit_point") is not None:
+        d = x[:3] - inst["exit_point"]
+        A[r, :4] = d / np.linalg.norm(d) @ J[:3]
+        uv[r] = inst["extension_rate_max"]
+    return P, qv, A, lv, uv
+
+
+def _close(actual: np.ndarray, expected: np.ndarray) -> None:
+    scale = max(1.0, float(np.max(np.abs(np.where(np.abs(expected) < INF / 2, expected, 0)))))
+    np.testing.assert_allclose(actual, expected, rtol=1e-12, atol=1e-12 * scale)
+
+
+@pytest.mark.parametrize(
+    "fixtures",
+    [
+        (Line(direction=[1.0, 1.0, 2.0]),),
+        (Line(direction=[1.0, 1.0, 2.0]), Cone(axis=[0.0, 0.0, 1.0], half_angle=0.62)),
+        (Circle(center=[0.0, 0.0, 0.15], radius=0.05),),
+        (Plane(point=[0.0, 0.0, 0.12], normal=[0.0, 0.2, 1.0]),),
+        (),
+    ],
+    ids=["line", "line+cone", "circle", "plane", "none"],
+)
+@pytest.mark.parametrize("rate", [True, False], ids=["rate", "no-rate"])
+def test_assembly_matches_a_dense_numpy_build(fixtures: tuple, rate: bool) -> None:
+    """matrices() (what the compiled kernel wrote) and the value arrays handed to OSQP
+    (Px, Ax in the setup's CSC order) against a dense numpy build, to 1e-12."""
+    rng = np.random.default_rng(5)
+    qp = ConstrainedQP(fixtures, extension_rate=rate)
+    for k in range(30):
+        inst = _random_instance(rng, np.array([0.01, 0.0, 0.12]), spread=0.02)
+        if k % 3 == 1:
+            inst["x_target"] = None
+        if k % 4 == 2:
+            inst["v_target"] = None
+        if k % 5 == 3:
+            inst["exit_point"] = None
+        if k % 7 == 0:  # outside the joint box: the bounds point back into it
+            inst["q"] = inst["q"] + rng.normal(scale=2.0, size=4)
+        qp._assemble(
+            inst["q"],
+            inst["x"],
+            inst["jacobian"],
+            inst["v_target"],
+            inst["x_target"],
+            inst["exit_point"],
+            inst["extension_rate_max"],
+        )
+        P, q, A, lo, hi = qp.matrices()
+        eP, eq, eA, elo, ehi = _dense_oracle(qp, inst)
+        for actual, expected in ((P, eP), (q, eq), (A, eA), (lo, elo), (hi, ehi)):
+            _close(actual, expected)
+        # The value arrays OSQP gets, in the structure set up once: P's upper triangle
+        # over qdot by columns then the slack diagonal; A by columns, rows ascending.
+        px = [P[i, j] for j in range(4) for i in range(j + 1)]
+        px += [P[i, i] for i in range(4, qp.n)]
+        ax = [A[i, j] for j in range(4) for i in [j, *range(4, qp.m)]]
+        ax += [A[i, i] for i in range(4, qp.m)]
+        assert np.array_equal(qp._Px, px) and np.array_equal(qp._Ax, ax)
+
+
+def test_compiled_kernels_equal_their_python_source_bit_for_bit() -> None:
+    """numba compiles the kernels without fastmath: the compiled assembly and result give
+    the very bits of the Python source (no fused multiply-adds, no reordered sums)."""
+    from suture_engine.control import _qp_kernels as kern
+
+    assemble, finish, compiled = kern.JIT
+    if not compiled:
+        pytest.skip("numba is not installed: the Python source is what runs")
+    rng = np.random.default_rng(9)
+    line = Line(direction=[1.0, 1.0, 2.0])
+    cone = Cone(axis=[0.0, 0.0, 1.0], half_angle=0.62)
+    qp = ConstrainedQP([line, cone], extension_rate=True)
+    for _ in range(200):
+        inst = _random_instance(rng, np.array([0.01, 0.0, 0.12]), spread=0.02)
+        c = np.r_[line.value(inst["x"]), cone.value(inst["x"])]
+        jc = np.vstack([line.jacobian(inst["x"]), cone.jacobian(inst["x"])])
+        outs = []
+        for fn in (assemble, assemble.py_func):
+            H, g = np.zeros((4, 4)), qp._gflat.copy()
+            px, qv, lo, hi, ax = (
+                qp._Px.copy(),
+                qp._q.copy(),
+                qp._l.copy(),
+                qp._u.copy(),
+                qp._Ax.copy(),
+            )
+            fn(
+                inst["jacobian"], inst["x"], inst["x_target"], inst["v_target"], inst["q"],
+                c, jc, qp._eq, inst["exit_point"], 0.01, 7, qp._ext_row, qp._cst,
+                H, g, px, qv, lo, hi, qp._a_idx, ax,
+            )  # fmt: skip
+            outs.append(b"".join(a.tobytes() for a in (H, g, px, qv, lo, hi, ax)))
+        assert outs[0] == outs[1]
+        z = rng.normal(scale=0.05, size=qp.n)
+        res = []
+        for fn in (finish, finish.py_func):
+            qdot, act = np.zeros(4), np.zeros(qp.m, np.int8)
+            slack = fn(z, lo, hi, g, qp._eq, qp._act_tol, qdot, act)
+            res.append((float(slack).hex(), qdot.tobytes(), act.tobytes()))
+        assert res[0] == res[1]

@@ -269,39 +269,30 @@ class ConstrainedQP:
             names.append("extension_rate")
         self.row_names: tuple[str, ...] = tuple(names)
         self._eq_set = frozenset(eq_rows)
-        self._box_rows = tuple((i, names[i]) for i in range(_N))
-        self._soft_rows = tuple((i, names[i], i in self._eq_set) for i in range(_N, len(names)))
 
-        # Preallocated buffers, and views into them, filled in place every tick.
+        # Preallocated buffers, and views into them, filled in place every tick by the
+        # compiled kernels of :mod:`suture_engine.control._qp_kernels`.
         w = self.weights
         self._H = np.zeros((_N, _N))
-        self._JW = np.zeros((_N, _N))
-        self._damp = np.eye(_N) * w.damping
         # G: the soft rows of A over qdot, stored flat with a trailing 1.0 so that one
-        # np.take fills every value of A (the identity entries point at that 1.0).
+        # gather fills every value of A (the identity entries point at that 1.0).
         self._gflat = np.zeros(m_soft * _N + 1)
         self._gflat[-1] = 1.0
         self._G = self._gflat[:-1].reshape(m_soft, _N)
         self._q = np.zeros(self.n)
         self._l = np.full(self.m, -INF)
         self._u = np.full(self.m, INF)
-        self._q_qd = self._q[:_N]
-        self._l_qd = self._l[:_N]
-        self._u_qd = self._u[:_N]
-        self._vref = np.zeros(_N)
         self._qdot = np.zeros(_N)
-        self._d3 = np.zeros(3)
-        self._ax = np.zeros(self.m)
-        self._fix_views = []
-        r = 0
-        for fx in self.fixtures:
-            rows = slice(_N + r, _N + r + fx.rows)
-            self._fix_views.append(
-                (fx, self._G[r : r + fx.rows], self._l[rows], self._u[rows], fx.kind == "eq")
-            )
-            r += fx.rows
-        self._ext_row = _N + r
-        self._ext_g = self._G[r] if extension_rate else None
+        self._active_rows = np.zeros(self.m, dtype=np.int8)
+        self._active_names: dict[bytes, tuple[str, ...]] = {}
+        # per soft row: 1 for an equality fixture row (always active)
+        self._eq = np.array([1 if i in self._eq_set else 0 for i in range(_N, self.m)], np.int8)
+        m_fix = self._m_soft - (1 if extension_rate else 0)
+        self._c_buf = np.zeros(m_fix)
+        self._jc_buf = np.zeros((m_fix, _N))
+        self._ext_row = m_fix if extension_rate else -1
+        self._empty3 = np.zeros(3)
+        self._empty4 = np.zeros(_N)
 
         # P: dense upper triangle over qdot, diagonal over the slacks.
         rows_p, cols_p = [], []
@@ -309,12 +300,11 @@ class ConstrainedQP:
             for i in range(j + 1):
                 rows_p.append(i)
                 cols_p.append(j)
-        self._p_idx = np.array([i * _N + j for i, j in zip(rows_p, cols_p, strict=True)])
+        n_qd = len(rows_p)  # the kernel writes these first values of Px, in this order
         rows_p += list(range(_N, self.n))
         cols_p += list(range(_N, self.n))
         self._Px = np.ones(len(rows_p))
-        self._Px[len(self._p_idx) :] = w.slack
-        self._Px_qd = self._Px[: len(self._p_idx)]
+        self._Px[n_qd:] = w.slack
         P = sp.csc_matrix((self._Px.copy(), (rows_p, cols_p)), shape=(self.n, self.n))
         # A: identity over qdot for the bounds; dense soft block; identity over the slacks.
         one = m_soft * _N
@@ -368,43 +358,28 @@ class ConstrainedQP:
         low = getattr(self._solver, "_solver", None)
         needed = ("update_data_vec", "update_data_mat", "solve", "info", "solution")
         self._low = low if low is not None and all(hasattr(low, a) for a in needed) else None
+        from suture_engine.control import _qp_kernels as kern
+
+        self._assemble_kernel, self._finish_kernel, self.compiled = kern.JIT
         lim = self.limits
-        self._qmin_l = lim.q_min.tolist()
-        self._qmax_l = lim.q_max.tolist()
-        self._qd_l = lim.qd_max.tolist()
-        self._q2_edge = math.pi / 2 - lim.q2_margin
-        self._horizon = lim.horizon
-        self._inv_tau = 1.0 / lim.singular_time_constant
-        self._q4_min = lim.q4_min
-        self._box: tuple[list[float], list[float]] = ([], [])
+        cst = np.zeros(kern.C_SIZE)
+        cst[kern.C_TASK : kern.C_TASK + _N] = w.task
+        cst[kern.C_DAMP] = w.damping
+        cst[kern.C_POS_GAIN] = w.position_gain
+        cst[kern.C_FIX_GAIN] = -w.fixture_gain
+        cst[kern.C_HORIZON] = lim.horizon
+        cst[kern.C_INV_TAU] = 1.0 / lim.singular_time_constant
+        cst[kern.C_EDGE] = math.pi / 2 - lim.q2_margin
+        cst[kern.C_Q4_MIN] = lim.q4_min
+        cst[kern.C_QMIN : kern.C_QMIN + _N] = lim.q_min
+        cst[kern.C_QMAX : kern.C_QMAX + _N] = lim.q_max
+        cst[kern.C_QD : kern.C_QD + _N] = lim.qd_max
+        self._cst = cst
+        self._flag_x = kern.F_XTARGET
+        self._flag_v = kern.F_VTARGET
+        self._flag_e = kern.F_EXIT
 
     # ------------------------------------------------------------------ assembly
-    def _joint_bounds(self, q: Array) -> None:
-        # Plain floats, unrolled over the four joints: cheaper than ten numpy calls.
-        h = self._horizon
-        inv_tau = self._inv_tau
-        q0, q1, q2, q3 = q.tolist()
-        mn0, mn1, mn2, mn3 = self._qmin_l
-        mx0, mx1, mx2, mx3 = self._qmax_l
-        v0, v1, v2, v3 = self._qd_l
-        edge = self._q2_edge
-        # Each joint: clamp into [-v, v]; outside a bound already: move back (at most
-        # at the speed limit), never an empty box.
-        lo0 = min(max((mn0 - q0) / h, -v0), v0)
-        lo1 = min(max(max((mn1 - q1) / h, (-edge - q1) * inv_tau), -v1), v1)
-        lo2 = min(max((mn2 - q2) / h, -v2), v2)
-        lo3 = min(max(max((mn3 - q3) / h, (self._q4_min - q3) * inv_tau), -v3), v3)
-        lo = [lo0, lo1, lo2, lo3]
-        hi = [
-            max(min(max((mx0 - q0) / h, -v0), v0), lo0),
-            max(min(max(min((mx1 - q1) / h, (edge - q1) * inv_tau), -v1), v1), lo1),
-            max(min(max((mx2 - q2) / h, -v2), v2), lo2),
-            max(min(max((mx3 - q3) / h, -v3), v3), lo3),
-        ]
-        self._l_qd[:] = lo
-        self._u_qd[:] = hi
-        self._box = (lo, hi)  # the same values as floats, for _finish
-
     def solve(
         self,
         q: Array,
@@ -453,81 +428,82 @@ class ConstrainedQP:
         exit_point: Array | None,
         extension_rate_max: float | None,
     ) -> None:
-        w = self.weights
-        # P over qdot: J^T W J + lambda I (upper triangle, column-major, by one take).
-        JW = self._JW
-        np.multiply(J.T, w.task, out=JW)
-        np.matmul(JW, J, out=self._H)
-        self._H += self._damp
-        # mode='clip' (the indices are in range): with out= and the default 'raise',
-        # numpy buffers the result first (~4 us a call here).
-        self._H.take(self._p_idx, out=self._Px_qd, mode="clip")
-        # q over qdot: -J^T W v_ref, v_ref = v_target + K_x (x_target - x).
-        vref = self._vref
-        if x_target is not None:
-            np.subtract(x_target, x, out=vref)
-            vref *= w.position_gain
-            if v_target is not None:
-                vref += v_target
-        elif v_target is not None:
-            vref[:] = v_target
+        # The fixture rows' C(x) and Jc(x) (Python objects), then one compiled call fills
+        # P, q, l, u and A (see _qp_kernels.assemble).
+        fixtures = self.fixtures
+        if len(fixtures) == 1:
+            c, jc = fixtures[0].linearize(x)
         else:
-            vref.fill(0.0)
-        np.matmul(JW, vref, out=self._q_qd)
-        np.negative(self._q_qd, out=self._q_qd)
-        # Bounds over qdot.
-        self._joint_bounds(q)
-        # Fixture rows: Jc J qdot + s (=|<=) -k_c C(x).
-        kc = -w.fixture_gain
-        for fx, g_rows, l_rows, u_rows, is_eq in self._fix_views:
-            c, jc = fx.linearize(x)
-            np.matmul(jc, J, out=g_rows)
-            np.multiply(c, kc, out=u_rows)
-            if is_eq:
-                l_rows[:] = u_rows
-        # Extension rate: (p - e)^T / |p - e| J_p qdot + s <= ldot_max.
-        g_ext = self._ext_g
-        if g_ext is not None:
-            row = self._ext_row
-            if exit_point is None or extension_rate_max is None:
-                g_ext.fill(0.0)
-                self._u[row] = INF
-            else:
-                d = self._d3
-                np.subtract(x[:3], exit_point, out=d)
-                dist = math.sqrt(d @ d)
-                if dist > 1e-9:
-                    d /= dist
-                    np.matmul(d, J[:3], out=g_ext)
-                else:
-                    g_ext.fill(0.0)
-                self._u[row] = extension_rate_max
-        self._gflat.take(self._a_idx, out=self._Ax, mode="clip")
+            c, jc = self._c_buf, self._jc_buf
+            r = 0
+            for fx in fixtures:
+                cf, jf = fx.linearize(x)
+                c[r : r + fx.rows] = cf
+                jc[r : r + fx.rows] = jf
+                r += fx.rows
+        flags = 0
+        if x_target is None:
+            x_target = self._empty4
+        else:
+            flags |= self._flag_x
+        if v_target is None:
+            v_target = self._empty4
+        else:
+            flags |= self._flag_v
+        ldot = 0.0
+        if exit_point is None or extension_rate_max is None:
+            exit_point = self._empty3
+        else:
+            flags |= self._flag_e
+            ldot = float(extension_rate_max)
+        self._assemble_kernel(
+            J,
+            x,
+            x_target,
+            v_target,
+            q,
+            c,
+            jc,
+            self._eq,
+            exit_point,
+            ldot,
+            flags,
+            self._ext_row,
+            self._cst,
+            self._H,
+            self._gflat,
+            self._Px,
+            self._q,
+            self._l,
+            self._u,
+            self._a_idx,
+            self._Ax,
+        )
 
     def _finish(self, status: str, iters: int, solve_time: float, z: Array | None) -> QPResult:
         self.solves += 1
-        zl = z.tolist() if z is not None else []
-        ok = status == "solved" and len(zl) == self.n and all(map(math.isfinite, zl))
-        if ok:
+        if status == "solved" and z is not None and z.shape == (self.n,):
             # The joint box is hard: clip the solver's tolerance-level excursions
-            # (eps_abs + eps_rel * |z|) so the command never leaves it. A fresh read-only
-            # array: handed to the result as it is (hold() copies it).
-            lo, hi = self._box
-            z0, z1, z2, z3 = zl[0], zl[1], zl[2], zl[3]
-            qdot = np.array(
-                (
-                    min(max(z0, lo[0]), hi[0]),
-                    min(max(z1, lo[1]), hi[1]),
-                    min(max(z2, lo[2]), hi[2]),
-                    min(max(z3, lo[3]), hi[3]),
-                )
+            # (eps_abs + eps_rel * |z|) so the command never leaves it. A fresh array,
+            # read-only: handed to the result as it is (hold() copies it).
+            qdot = np.empty(_N)
+            act = self._active_rows
+            slack = self._finish_kernel(
+                z, self._l, self._u, self._gflat, self._eq, self._act_tol, qdot, act
             )
-            qdot.flags.writeable = False
-            self._qdot = qdot
-            self.consecutive_failures = 0
-            slack = max(map(abs, zl[_N:])) if self._m_soft else 0.0
-            active = self._active(zl)
-            return QPResult(qdot, str(status), True, int(iters), float(solve_time), active, slack)
+            if slack >= 0.0:  # -1: a non-finite solution
+                qdot.flags.writeable = False
+                self._qdot = qdot
+                self.consecutive_failures = 0
+                key = act.tobytes()
+                active = self._active_names.get(key)
+                if active is None:
+                    names = self.row_names
+                    active = tuple(names[i] for i, a in enumerate(act.tolist()) if a)
+                    self._active_names[key] = active
+                return QPResult(
+                    qdot, str(status), True, int(iters), float(solve_time), active, slack
+                )
         self.failures += 1
         self.consecutive_failures += 1
         if status == "run time limit reached":
@@ -541,31 +517,6 @@ class ConstrainedQP:
             active=(),
             slack_max=float("nan"),
         )
-
-    def _active(self, z: list[float]) -> tuple[str, ...]:
-        # A row is active when |A z - bound| <= 2 eps_abs + 1e-4 |bound|; equality fixture
-        # rows always are. Plain floats: for ten rows this beats a dozen numpy calls.
-        tol = self._act_tol
-        lo_l, hi_l = self._box
-        out = []
-        for i, name in self._box_rows:
-            a, hi, lo = z[i], hi_l[i], lo_l[i]
-            if abs(a - hi) <= tol + 1e-4 * abs(hi) or abs(a - lo) <= tol + 1e-4 * abs(lo):
-                out.append(name)
-        if self._m_soft:
-            lo_l, hi_l = self._l.tolist(), self._u.tolist()
-            g = self._G.tolist()
-            z0, z1, z2, z3 = z[0], z[1], z[2], z[3]
-            for i, name, eq in self._soft_rows:
-                if eq:
-                    out.append(name)
-                    continue
-                row = g[i - _N]
-                a = row[0] * z0 + row[1] * z1 + row[2] * z2 + row[3] * z3 + z[i]
-                hi, lo = hi_l[i], lo_l[i]
-                if abs(a - hi) <= tol + 1e-4 * abs(hi) or abs(a - lo) <= tol + 1e-4 * abs(lo):
-                    out.append(name)
-        return tuple(out)
 
     # ------------------------------------------------------------------ introspection
     def matrices(self) -> tuple[Array, Array, Array, Array, Array]:
