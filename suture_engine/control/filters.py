@@ -135,6 +135,30 @@ class WashoutFilter:
         self._v[:] = vl
         return self._v
 
+    def update_frozen(self, q: NDArray[np.float64]) -> NDArray[np.float64]:
+        """:meth:`update`, returning the estimate as a fresh read-only array the caller
+        may keep (the interpreter's per-tick form: no copy of the internal storage).
+
+        Args:
+            q: joint positions [rad or m], shape ``(n,)``.
+
+        Returns:
+            The velocity estimate [rad/s or m/s], the same numbers as :meth:`update`.
+        """
+        ql = q.tolist()
+        if not self._started:
+            self._q_prev = ql
+            self._started = True
+            out = self._v.copy()
+        else:
+            a, b, qp, vl = self._a, self._b, self._q_prev, self._vl
+            for i in range(self.n):
+                vl[i] = a * vl[i] + b * (ql[i] - qp[i])
+            self._q_prev = ql
+            out = np.array(vl)  # (update() alone writes its view, self._v)
+        out.flags.writeable = False
+        return out
+
     def transfer_function(self) -> DiscreteTransferFunction:
         """One channel's discrete transfer function ``p (z-1) / ((p Ts + 1) z - 1)`` (3.79)."""
         g = 1.0 + self.pole * self.dt

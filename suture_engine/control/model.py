@@ -56,6 +56,9 @@ class ControlModel:
     coulomb: FloatArray
     viscous: FloatArray
     coriolis_vector: Callable[[FloatArray, FloatArray], FloatArray] | None = None
+    gravity_floats: Callable[[list[float]], list[float]] | None = None
+    """Optional ``G^(q)`` on Python floats (joints as a list): the same numbers as
+    ``gravity_vector``, without an array each way (the PD law's per-tick path)."""
 
     def coriolis_torque(self, q: FloatArray, qd: FloatArray) -> FloatArray:
         """``C^(q, qd) qd`` [N m, N] (3.40).
@@ -109,6 +112,13 @@ def endobot_control_model(
     def coriolis_vec(q: FloatArray, qd: FloatArray) -> FloatArray:
         return endobot.coriolis_vector(q, qd, p)
 
+    from suture_engine.robot.dynamics import gravity_floats as _gravity_floats
+
+    theta, g_base = p.coefficients, p.gravity
+
+    def gravity_list(qf: list[float]) -> list[float]:
+        return _gravity_floats(qf, theta, g_base)
+
     return ControlModel(
         mass_matrix=mass,
         coriolis_matrix=coriolis,
@@ -116,6 +126,7 @@ def endobot_control_model(
         coulomb=fc * friction_scale,
         viscous=fv * friction_scale,
         coriolis_vector=coriolis_vec,
+        gravity_floats=gravity_list,
     )
 
 

@@ -154,6 +154,7 @@ class PDController:
         self._kd: list[float] = self.gains.kd.tolist()
         self._fc: list[float] = np.asarray(model.coulomb, dtype=float).tolist()
         self._zeros: list[float] = [0.0] * n
+        self._gravity_floats = model.gravity_floats
 
     def __repr__(self) -> str:
         return (
@@ -176,7 +177,12 @@ class PDController:
             Joint torques/forces [N m, N], a fresh array.
         """
         ql, vl, qrl, vrl = as_floats(q), as_floats(qd), as_floats(q_des), as_floats(qd_des)
-        g = self.model.gravity_vector(q).tolist() if self.gravity else self._zeros
+        if not self.gravity:
+            g = self._zeros
+        elif self._gravity_floats is not None:
+            g = self._gravity_floats(ql)
+        else:
+            g = self.model.gravity_vector(q).tolist()
         kp, kd = self._kp, self._kd
         out = [g[i] - kp[i] * (ql[i] - qrl[i]) - kd[i] * (vl[i] - vrl[i]) for i in range(len(ql))]
         if self.friction:

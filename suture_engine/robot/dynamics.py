@@ -37,6 +37,7 @@ __all__ = [
     "N_THETA",
     "coriolis_matrix",
     "coriolis_vector",
+    "gravity_floats",
     "gravity_vector",
     "inverse_dynamics",
     "mass_matrix",
@@ -206,15 +207,30 @@ def gravity_vector(
     Returns:
         G(q) [N*m, N*m, N*m, N], shape (4,).
     """
-    qf = _floats(q)
+    g0, g1, g2, g3 = gravity_floats(_floats(q), th, g)
+    res = np.empty(4) if out is None else out
+    res[0] = g0
+    res[1] = g1
+    res[2] = g2
+    res[3] = g3
+    return res
+
+
+def gravity_floats(qf: list[float], th: DynamicCoefficients, g: Gravity) -> list[float]:
+    """:func:`gravity_vector` on Python floats, the same operations (the controllers'
+    per-tick form).
+
+    Args:
+        qf: joints [rad, rad, rad, m] as floats.
+        th: base dynamic parameters θ.
+        g: gravity acceleration in the base frame [m/s^2].
+
+    Returns:
+        G(q) [N*m, N*m, N*m, N] as four floats.
+    """
     w1, w2, w4 = _gravity_terms_of(qf[0], qf[1], g)
     k = th.ml2 + th.m4 * qf[3]
-    res = np.empty(4) if out is None else out
-    res[0] = (th.ml1 - th.ml2 + k * math.cos(qf[1])) * w1
-    res[1] = -k * w2
-    res[2] = 0.0
-    res[3] = -th.m4 * w4
-    return res
+    return [(th.ml1 - th.ml2 + k * math.cos(qf[1])) * w1, -k * w2, 0.0, -th.m4 * w4]
 
 
 def inverse_dynamics(q: Vec, qd: Vec, qdd: Vec, th: DynamicCoefficients, g: Gravity) -> FloatArray:
