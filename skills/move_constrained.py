@@ -61,11 +61,19 @@ def _step_imports() -> tuple[Any, ...]:
 
 
 @functools.cache
-def _kinematics() -> Any:
-    """:mod:`suture_engine.robot.kinematics`, imported on first use (lazily)."""
-    from suture_engine.robot import kinematics
+def _autonomous_imports() -> tuple[Any, ...]:
+    """The names autonomous step() uses, imported once (lazily, as _step_imports)."""
+    import numpy as np
 
-    return kinematics
+    from suture_engine.robot import kinematics
+    from suture_engine.runtime.observation import (
+        Command,
+        RobotCommand,
+        SkillStatus,
+        StepResult,
+    )
+
+    return np, kinematics, Command, RobotCommand, SkillStatus, StepResult
 
 
 class MoveConstrainedParams(SkillParams):
@@ -188,6 +196,10 @@ class MoveConstrained(Skill):
         self._peak_f: Any = None
         self._jac: Any = None
         self._next_ref: tuple[float, Any] | None = None
+        self._f0_list: list[float] = []
+        self._df_list: list[float] = []
+        self._c_zero_list: list[float] = []
+        self._np: Any = None
         self._final_ref: tuple[Any, Any] | None = None
         self.last_qp: Any = None
         """The last tick's :class:`~suture_engine.control.constrained_qp.QPResult` (traces)."""
@@ -278,6 +290,10 @@ class MoveConstrained(Skill):
                 f_goal[0] = self._f0[0] + (f_goal[0] - self._f0[0] + np.pi) % (2 * np.pi) - np.pi
             self._f_goal = f_goal
             self._df = f_goal - self._f0
+            self._f0_list = self._f0.tolist()
+            self._df_list = self._df.tolist()
+            self._c_zero_list = self._c_zero.tolist()
+            self._np = np
         else:
             self._x_goal = goal
         self._duration = max(0.1, 1.5 * float(np.linalg.norm(self._x_goal[:3] - x0[:3])) / p.speed)
@@ -300,8 +316,10 @@ class MoveConstrained(Skill):
         s = min(max(tt / self._duration, 0.0), 1.0)
         sigma = s * s * (3.0 - 2.0 * s)
         if self._fixture.kind == "eq":
-            f = self._f0 + sigma * self._df  # _df = f_goal - f0, computed once
-            return self._fixture.inverse(self._c_zero, f)
+            # f = f0 + sigma (f_goal - f0) on Python floats (numpy's element-wise
+            # operations, the same numbers), stacked under c = 0 in one array.
+            f = [a + sigma * b for a, b in zip(self._f0_list, self._df_list, strict=True)]
+            return self._fixture.inverse_stacked(self._np.array(self._c_zero_list + f))
         return self._x_goal
 
     def _reference(self, t: float) -> tuple[Any, Any]:
@@ -343,56 +361,15 @@ class MoveConstrained(Skill):
         Returns:
             A :class:`suture_engine.runtime.observation.StepResult`.
         """
-        (
-            np,
-            TaskSpaceGains,
-            TaskSpaceOutput,
-            constraint_force,
-            joint_space_shared_control,
-            task_space_shared_control,
-            task_vector,
-            endobot,
-            Command,
-            RobotCommand,
-            SkillStatus,
-            StepResult,
-        ) = _step_imports()
         p = self.params
         assert isinstance(p, MoveConstrainedParams)
         ro = obs.robots[self._robot]
         t = obs.t - self._t0
         if p.mode == "shared":
-            grav = endobot.gravity_vector(ro.q, self._gravity_params)
-            if self._space() == "joint" and self._fixture.kind == "eq":
-                tau, _ = joint_space_shared_control(
-                    self._fixture,
-                    ro.q,
-                    ro.qd,
-                    np.asarray(self.JOINT_KP, dtype=float),
-                    np.asarray(self.JOINT_KD, dtype=float),
-                )
-                x_meas = task_vector(np.asarray(ro.q, dtype=float))
-                out = TaskSpaceOutput(
-                    tau + grav,
-                    constraint_force(self._fixture, ro.q, tau),  # (6.53)
-                    self._fixture.value(x_meas),
-                )
-            else:
-                out = task_space_shared_control(
-                    self._fixture,
-                    ro.q,
-                    ro.qd,
-                    TaskSpaceGains(self.STIFFNESS, self.DAMPING),
-                    gravity=grav,
-                )
-            if t >= self.CAPTURE_S:
-                np.maximum(self._peak_e, np.abs(out.deviation), out=self._peak_e)
-                np.maximum(self._peak_f, np.abs(out.constraint_force), out=self._peak_f)
-            command = Command({self._robot: RobotCommand.torque(out.tau)})
-            done = p.duration is not None and t >= p.duration
-            return StepResult(command, SkillStatus.SUCCESS if done else SkillStatus.RUNNING)
+            return self._shared_step(p, ro, t)
+        np, kin, Command, RobotCommand, SkillStatus, StepResult = _autonomous_imports()
         q_ref = self._q_ref
-        x_ref, jac = _kinematics().task_vector_and_jacobian(q_ref, self._jac)
+        x_ref, jac = kin.task_vector_and_jacobian(q_ref, self._jac)
         x_target, v_target = self._reference(t)
         res = self._qp.solve(
             q_ref,
@@ -415,7 +392,7 @@ class MoveConstrained(Skill):
                 SkillStatus.FAILURE,
                 f"QP not solved for {self._qp.consecutive_failures} ticks ({res.status})",
             )
-        x_meas = _kinematics().task_vector(ro.q)
+        x_meas = kin.task_vector(ro.q)
         e = self._fixture.value(x_meas)
         np.maximum(self._peak_e, np.abs(e), out=self._peak_e)
         if t < self._duration:
@@ -430,6 +407,53 @@ class MoveConstrained(Skill):
                 f"tool tip {error * 1e3:.2f} mm from the target after {t:.2f} s",
             )
         return StepResult(command)
+
+    def _shared_step(self, p: MoveConstrainedParams, ro: Any, t: float) -> Any:
+        """Shared mode's tick (see :meth:`step`): task- or joint-space shared control plus
+        gravity compensation, as joint torques; ``t`` [s] since the step's start."""
+        (
+            np,
+            TaskSpaceGains,
+            TaskSpaceOutput,
+            constraint_force,
+            joint_space_shared_control,
+            task_space_shared_control,
+            task_vector,
+            endobot,
+            Command,
+            RobotCommand,
+            SkillStatus,
+            StepResult,
+        ) = _step_imports()
+        grav = endobot.gravity_vector(ro.q, self._gravity_params)
+        if self._space() == "joint" and self._fixture.kind == "eq":
+            tau, _ = joint_space_shared_control(
+                self._fixture,
+                ro.q,
+                ro.qd,
+                np.asarray(self.JOINT_KP, dtype=float),
+                np.asarray(self.JOINT_KD, dtype=float),
+            )
+            x_meas = task_vector(np.asarray(ro.q, dtype=float))
+            out = TaskSpaceOutput(
+                tau + grav,
+                constraint_force(self._fixture, ro.q, tau),  # (6.53)
+                self._fixture.value(x_meas),
+            )
+        else:
+            out = task_space_shared_control(
+                self._fixture,
+                ro.q,
+                ro.qd,
+                TaskSpaceGains(self.STIFFNESS, self.DAMPING),
+                gravity=grav,
+            )
+        if t >= self.CAPTURE_S:
+            np.maximum(self._peak_e, np.abs(out.deviation), out=self._peak_e)
+            np.maximum(self._peak_f, np.abs(out.constraint_force), out=self._peak_f)
+        command = Command({self._robot: RobotCommand.torque(out.tau)})
+        done = p.duration is not None and t >= p.duration
+        return StepResult(command, SkillStatus.SUCCESS if done else SkillStatus.RUNNING)
 
     def metrics(self) -> dict[str, float]:
         """Chapter 6 figures of this run so far (Tables 6.2-6.4, (6.54)).

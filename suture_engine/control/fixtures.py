@@ -127,6 +127,11 @@ class EqualityFixture(Fixture):
         """The constraint-set point with the same free coordinates, d^-1([0; f(x)]) (6.35)."""
         return self.inverse(np.zeros(self.rows), self.free(x))
 
+    def inverse_stacked(self, cf: Array) -> Array:
+        """:meth:`inverse` of ``[c; f]`` given stacked in one array, shape (4,) (a
+        per-tick form: ``cf`` is not kept)."""
+        return self.inverse(cf[: self.rows], cf[self.rows :])
+
 
 @dataclass(frozen=True, eq=False)
 class Line(EqualityFixture):
@@ -204,8 +209,12 @@ class Line(EqualityFixture):
 
     def inverse(self, c: Array, f: Array) -> Array:
         """d^-1 of the linear map d = [Jc; Jf] (x - (p0, 0)) (6.39-6.40)."""
+        return self.inverse_stacked(np.concatenate([np.asarray(c, float), np.asarray(f, float)]))
+
+    def inverse_stacked(self, cf: Array) -> Array:
+        """:meth:`inverse` of the stacked ``[c; f]`` (4,) [m, m, m, rad]: one product."""
         dinv: Array = self._dinv  # type: ignore[attr-defined]
-        out = dinv @ np.concatenate([np.asarray(c, float), np.asarray(f, float)])
+        out = dinv @ cf
         out[:3] += self.point
         return out
 
