@@ -440,9 +440,10 @@ def _close(actual: np.ndarray, expected: np.ndarray) -> None:
         (Line(direction=[1.0, 1.0, 2.0]), Cone(axis=[0.0, 0.0, 1.0], half_angle=0.62)),
         (Circle(center=[0.0, 0.0, 0.15], radius=0.05),),
         (Plane(point=[0.0, 0.0, 0.12], normal=[0.0, 0.2, 1.0]),),
+        (Line(direction=[1.0, 1.0, 2.0]), Plane(point=[0.0, 0.0, 0.1], normal=[1.0, -1.0, 0.0])),
         (),
     ],
-    ids=["line", "line+cone", "circle", "plane", "none"],
+    ids=["line", "line+cone", "circle", "plane", "line+plane", "none"],
 )
 @pytest.mark.parametrize("rate", [True, False], ids=["rate", "no-rate"])
 def test_assembly_matches_a_dense_numpy_build(fixtures: tuple, rate: bool) -> None:
@@ -494,10 +495,13 @@ def test_compiled_kernels_equal_their_python_source_bit_for_bit() -> None:
     line = Line(direction=[1.0, 1.0, 2.0])
     cone = Cone(axis=[0.0, 0.0, 1.0], half_angle=0.62)
     qp = ConstrainedQP([line, cone], extension_rate=True)
-    for _ in range(200):
+    for k in range(200):
         inst = _random_instance(rng, np.array([0.01, 0.0, 0.12]), spread=0.02)
         c = np.r_[line.value(inst["x"]), cone.value(inst["x"])]
         jc = np.vstack([line.jacobian(inst["x"]), cone.jacobian(inst["x"])])
+        p0 = rng.normal(scale=0.05, size=(3, 3))
+        # every optional input given; every other instance the rows evaluated as affine
+        flags = kern.F_XTARGET | kern.F_VTARGET | kern.F_EXIT | (kern.F_AFFINE if k % 2 else 0)
         outs = []
         for fn in (assemble, assemble.py_func):
             H, g = np.zeros((4, 4)), qp._gflat.copy()
@@ -510,7 +514,7 @@ def test_compiled_kernels_equal_their_python_source_bit_for_bit() -> None:
             )
             fn(
                 inst["jacobian"], inst["x"], inst["x_target"], inst["v_target"], inst["q"],
-                c, jc, qp._eq, inst["exit_point"], 0.01, 7, qp._ext_row, qp._cst,
+                c, jc, p0, qp._eq, inst["exit_point"], 0.01, flags, qp._ext_row, qp._cst,
                 H, g, px, qv, lo, hi, qp._a_idx, ax,
             )  # fmt: skip
             outs.append(b"".join(a.tobytes() for a in (H, g, px, qv, lo, hi, ax)))

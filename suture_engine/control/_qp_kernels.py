@@ -40,6 +40,7 @@ __all__ = [
     "C_QMIN",
     "C_SIZE",
     "C_TASK",
+    "F_AFFINE",
     "F_EXIT",
     "F_VTARGET",
     "F_XTARGET",
@@ -82,6 +83,8 @@ F_VTARGET = 2
 """v_target given: v_ref gets the feed-forward velocity."""
 F_EXIT = 4
 """The extension-rate row is on (exit point and ldot_max given)."""
+F_AFFINE = 8
+"""The fixture rows are affine, ``C(x) = Jc[:, :3] (p - p0)``: evaluated here, ``c`` unread."""
 
 _INF = 1e30  # OSQP's "no bound" (constrained_qp.INF)
 
@@ -94,6 +97,7 @@ def assemble(
     q: Array,
     c: Array,
     jc: Array,
+    p0: Array,
     eq: NDArray[np.int8],
     exit_point: Array,
     ldot_max: float,
@@ -117,12 +121,14 @@ def assemble(
         x_target: task target (read when ``flags & F_XTARGET``).
         v_target: feed-forward task velocity (read when ``flags & F_VTARGET``).
         q: joint positions [rad, rad, rad, m].
-        c: the fixture rows' values C(x), (m_fix,) [row units].
+        c: the fixture rows' values C(x), (m_fix,) [row units] (unread with F_AFFINE).
         jc: their Jacobian dC/dx, (m_fix, 4).
+        p0: with F_AFFINE, each row's point p0 [m], (m_fix, 3): C_r = Jc_r[:3] (p - p0_r).
         eq: per fixture row, 1 for an equality row.
         exit_point: the suture's exit point [m] (read when ``flags & F_EXIT``).
         ldot_max: the extension rate bound [m/s] (used when ``flags & F_EXIT``).
-        flags: ``F_XTARGET | F_VTARGET | F_EXIT``, the optional inputs given.
+        flags: ``F_XTARGET | F_VTARGET | F_EXIT | F_AFFINE``: the optional inputs given,
+            and whether the fixture rows are affine.
         ext_row: the soft row index of the extension-rate row, -1 when there is none.
         cst: the constants (``C_*`` layout).
         H: out, J^T W J + lambda I, (4, 4).
@@ -203,7 +209,13 @@ def assemble(
             s = s + jc[r, 2] * J[2, j]
             s = s + jc[r, 3] * J[3, j]
             gflat[r * 4 + j] = s
-        b = c[r] * kc
+        if flags & F_AFFINE:
+            cr = jc[r, 0] * (x[0] - p0[r, 0])
+            cr = cr + jc[r, 1] * (x[1] - p0[r, 1])
+            cr = cr + jc[r, 2] * (x[2] - p0[r, 2])
+        else:
+            cr = c[r]
+        b = cr * kc
         hi[4 + r] = b
         if eq[r]:
             lo[4 + r] = b

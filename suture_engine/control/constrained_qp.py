@@ -290,6 +290,18 @@ class ConstrainedQP:
         m_fix = self._m_soft - (1 if extension_rate else 0)
         self._c_buf = np.zeros(m_fix)
         self._jc_buf = np.zeros((m_fix, _N))
+        self._p0 = np.zeros((m_fix, 3))
+        # Lines and planes: C(x) = Jc[:, :3] (p - p0) with a constant Jc, evaluated by the
+        # kernel (no per-tick linearize); any other fixture is linearised in Python.
+        affine = [fx.affine() for fx in self.fixtures]
+        self._affine = bool(affine) and all(a is not None for a in affine)
+        if self._affine:
+            r = 0
+            for fx, a in zip(self.fixtures, affine, strict=True):
+                assert a is not None
+                self._jc_buf[r : r + fx.rows] = a[0]
+                self._p0[r : r + fx.rows] = a[1]
+                r += fx.rows
         self._ext_row = m_fix if extension_rate else -1
         self._empty3 = np.zeros(3)
         self._empty4 = np.zeros(_N)
@@ -378,6 +390,7 @@ class ConstrainedQP:
         self._flag_x = kern.F_XTARGET
         self._flag_v = kern.F_VTARGET
         self._flag_e = kern.F_EXIT
+        self._flag_a = kern.F_AFFINE
 
     # ------------------------------------------------------------------ assembly
     def solve(
@@ -431,7 +444,11 @@ class ConstrainedQP:
         # The fixture rows' C(x) and Jc(x) (Python objects), then one compiled call fills
         # P, q, l, u and A (see _qp_kernels.assemble).
         fixtures = self.fixtures
-        if len(fixtures) == 1:
+        flags = 0
+        if self._affine:
+            c, jc = self._c_buf, self._jc_buf
+            flags = self._flag_a
+        elif len(fixtures) == 1:
             c, jc = fixtures[0].linearize(x)
         else:
             c, jc = self._c_buf, self._jc_buf
@@ -441,7 +458,6 @@ class ConstrainedQP:
                 c[r : r + fx.rows] = cf
                 jc[r : r + fx.rows] = jf
                 r += fx.rows
-        flags = 0
         if x_target is None:
             x_target = self._empty4
         else:
@@ -464,6 +480,7 @@ class ConstrainedQP:
             q,
             c,
             jc,
+            self._p0,
             self._eq,
             exit_point,
             ldot,

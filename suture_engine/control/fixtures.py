@@ -106,6 +106,12 @@ class Fixture:
         """C(x) and Jc(x) together (the per-tick call of the QP); treat both as read-only."""
         return self.value(x), self.jacobian(x)
 
+    def affine(self) -> tuple[Array, Array] | None:
+        """``(Jc, p0)`` when ``C(x) = Jc[:, :3] (p - p0)`` with a constant Jc (m, 4) whose
+        roll column is zero and a point p0 [m] (a line, a plane), else None: the QP then
+        evaluates the rows itself."""
+        return None
+
 
 @dataclass(frozen=True, eq=False)
 class EqualityFixture(Fixture):
@@ -194,6 +200,11 @@ class Line(EqualityFixture):
         """C(x) and the constant Jc (shared, read-only)."""
         jc: Array = self._jc  # type: ignore[attr-defined]
         return jc[:, :3] @ (x[:3] - self.point), jc
+
+    def affine(self) -> tuple[Array, Array]:
+        """``(Jc, p0)``: the rows are ``Jc[:, :3] (p - p0)`` (shared, read-only)."""
+        jc: Array = self._jc  # type: ignore[attr-defined]
+        return jc, self.point
 
     def free(self, x: Array) -> Array:
         """f(x) = (arc length along the line, roll) (6.40) [m, rad]."""
@@ -350,6 +361,11 @@ class Plane(EqualityFixture):
         """C(x) and the constant Jc (shared, read-only)."""
         jc: Array = self._jc  # type: ignore[attr-defined]
         return jc[:, :3] @ (x[:3] - self.point), jc
+
+    def affine(self) -> tuple[Array, Array]:
+        """``(Jc, p0)``: the rows are ``Jc[:, :3] (p - p0)`` (shared, read-only)."""
+        jc: Array = self._jc  # type: ignore[attr-defined]
+        return jc, self.point
 
     def free(self, x: Array) -> Array:
         """f(x) = (u . (p - p0), v . (p - p0), phi) [m, m, rad]."""
