@@ -61,6 +61,10 @@ GRAVITY = 9.81
 """Gravity [m/s^2], pointing along -z of the world (the value of the robot model)."""
 
 
+_MODE_VALUES = {m: m.value for m in Mode}
+"""Mode -> its name (Mode.value is a descriptor; the tick records it per robot)."""
+
+
 class OperatorSource(Protocol):
     """Where operator events come from (scripted, interactive, a replayed trace)."""
 
@@ -237,9 +241,11 @@ class Interpreter:
         a physics blow-up or a sensor fault) and note it, with the sensors' dropouts,
         for the monitor's emergency check."""
         self._non_finite = bad = {}
-        self._stale = {n: True for n, m in meas.robots.items() if m.fault}
+        self._stale = stale = {}
         replaced: dict[str, RobotMeasurement] | None = None
         for name, m in meas.robots.items():
+            if m.fault:
+                stale[name] = True
             q = m.q.tolist()
             w = m.base_wrench.tolist()
             if math.isfinite(sum(q) + sum(w)):
@@ -262,11 +268,11 @@ class Interpreter:
         meas = self._sanitise(meas)
         robots = {}
         trusted = RobotObservation.trusted
+        washout = self._washout
         for name, m in meas.robots.items():
-            qd = self._washout[name].update(m.q).copy()  # the filter's storage is reused
-            qd.flags.writeable = False
+            qd = washout[name].update_frozen(m.q)  # a fresh read-only array
             robots[name] = trusted(m.q, qd, m.base_wrench, m.tool)  # read-only arrays
-        return meas, Observation(meas.tick, meas.t, robots, self.geometry)
+        return meas, Observation.trusted(meas.tick, meas.t, robots, self.geometry)
 
     def _record_transitions(self, time_ns: int, records: list[Any]) -> None:
         if records and self._last_skill is not None:
@@ -344,6 +350,8 @@ class Interpreter:
         tension a margin below the scene's limit, a non-finite measurement, a sensor
         stale too long (an unpredictable event; every robot locks and the operator is
         waited for). Recorded on /events as ``emergency`` with its reason."""
+        if self.monitor.quiet(self.safety, self._tension, self._stale, self._non_finite):
+            return  # the common tick: emergency() would return None and record nothing
         a = self.automaton
         manual_held = any(m is Mode.MANUAL for m in self.robot_modes.values())
         locked = a.mode in (Mode.LOCK, Mode.TERMINAL, Mode.IDLE) and not manual_held
@@ -390,8 +398,10 @@ class Interpreter:
 
     def _held_robot_blocks(self, time_ns: int) -> None:
         """A step that needs a robot the operator holds cannot run: interrupt it."""
+        if not self.robot_modes:  # the common tick (checked first: the cheaper test)
+            return
         a = self.automaton
-        if a.mode is not Mode.AUTONOMOUS or not self.robot_modes:
+        if a.mode is not Mode.AUTONOMOUS:
             return
         for robot in self.robot_modes:
             if a.mode_of(robot) is Mode.AUTONOMOUS:
@@ -491,8 +501,10 @@ class Interpreter:
             self.recorder.event(time_ns, ev.name, "info", self.automaton.state, ev.detail, ev.robot)
 
     def _manual_check(self, time_ns: int, obs: Observation) -> None:
+        if self.manual_invariant is None:
+            return
         a = self.automaton
-        if a.mode is not Mode.MANUAL or self.manual_invariant is None:
+        if a.mode is not Mode.MANUAL:
             return
         v = self.monitor.check(self.manual_invariant, obs, a.state, self._tension, {})
         if v is not None:
@@ -533,7 +545,7 @@ class Interpreter:
             if rc is not None and rc.tool is not None:
                 tools[name] = rc.tool
             torques[name] = self.controller.torque(name, mode, obs.robots[name], rc)
-            modes[name] = mode.value
+            modes[name] = _MODE_VALUES[mode]
         self.monitor.max_tension_N = max(self.monitor.max_tension_N, *tension.values())
         truth = self.backend.ground_truth()
         true_tension = truth.get("tension_N")

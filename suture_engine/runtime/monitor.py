@@ -313,6 +313,23 @@ class Monitor:
         self._stale_any = False
         self._active: set[tuple[str, str]] = set()
 
+    def quiet(
+        self,
+        limits: SafetyLimits,
+        tension: Mapping[str, float],
+        stale: Mapping[str, bool],
+        non_finite: Mapping[str, str],
+    ) -> bool:
+        """Whether :meth:`emergency` has nothing to do this tick: no sensor stale or
+        non-finite, none of them was on the last tick, and every tension [N] below the
+        lock bound. It then returns None and changes nothing; with fewer robots' tensions
+        (a subset of ``tension``) too.
+        """
+        if stale or non_finite or self._active or self._stale_any:
+            return False
+        bound = limits.lock_tension_N
+        return bound is None or not tension or max(tension.values()) < bound
+
     def emergency(
         self,
         limits: SafetyLimits,
@@ -341,10 +358,8 @@ class Monitor:
             The first emergency that must lock the robots now (also recorded), or
             None. A condition arising while ``locked`` is recorded, not returned.
         """
-        if not (stale or non_finite or self._active or self._stale_any):
-            bound = limits.lock_tension_N
-            if bound is None or not tension or max(tension.values()) < bound:
-                return None  # the common, quiet tick
+        if self.quiet(limits, tension, stale, non_finite):
+            return None  # the common, quiet tick
         found: list[Violation] = []
         for name in obs.robots:
             signal = non_finite.get(name)
@@ -399,13 +414,16 @@ class Monitor:
             base_poses: robot -> (base position [m], row-major 3x3 rotation) for the
                 tool-tip workspace box.
         """
+        top = max(tension.values()) if tension else -math.inf
         if tension:
-            self.max_tension_N = max(self.max_tension_N, max(tension.values()))
+            self.max_tension_N = max(self.max_tension_N, top)
         if invariant is None:
             return None
         names = robots or tuple(obs.robots)
         found: Violation | None = None
-        if invariant.max_tension_N is not None:
+        # max() is the largest of the non-NaN values (or NaN if the first is): when it is
+        # within the bound no robot's tension exceeds it and the ordered scan is skipped
+        if invariant.max_tension_N is not None and not top <= invariant.max_tension_N:
             # the suture's tension is one quantity, whichever robot's sensor reads it: a step
             # that drives the stitcher still must not overload the strand the grasper holds
             for name in sorted(tension, key=lambda n: (n not in names, n)):

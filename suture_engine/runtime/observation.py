@@ -115,8 +115,12 @@ class RobotMeasurement:
         """A measurement from read-only float64 arrays of shapes (4,) and (6,) that the
         caller never changes (no copy, no checks): a backend's per-tick fast path."""
         m = object.__new__(cls)
-        # The instance dict filled at once: the fields' values, as __init__ would set them.
-        m.__dict__.update(q=q, base_wrench=base_wrench, tool=tool, fault=fault)
+        # The instance dict filled directly: the fields' values, as __init__ would set them.
+        d = m.__dict__
+        d["q"] = q
+        d["base_wrench"] = base_wrench
+        d["tool"] = tool
+        d["fault"] = fault
         return m
 
 
@@ -244,7 +248,11 @@ class RobotObservation:
         """An observation from read-only float64 arrays that the caller never changes (no
         copy, no checks): the interpreter's per-tick fast path."""
         o = object.__new__(cls)
-        o.__dict__.update(q=q, qd=qd, base_wrench=base_wrench, tool=tool)
+        d = o.__dict__
+        d["q"] = q
+        d["qd"] = qd
+        d["base_wrench"] = base_wrench
+        d["tool"] = tool
         return o
 
 
@@ -263,6 +271,21 @@ class Observation:
     t: float
     robots: Mapping[str, RobotObservation]
     scene: SceneGeometry
+
+    @classmethod
+    def trusted(
+        cls, tick: int, t: float, robots: Mapping[str, RobotObservation], scene: SceneGeometry
+    ) -> Observation:
+        """An observation from fields the caller never changes afterwards (no checks): the
+        interpreter's per-tick fast path (a frozen dataclass's __init__ sets each field
+        through object.__setattr__)."""
+        o = object.__new__(cls)
+        d = o.__dict__
+        d["tick"] = tick
+        d["t"] = t
+        d["robots"] = robots
+        d["scene"] = scene
+        return o
 
 
 class CommandMode(enum.Enum):
@@ -346,7 +369,12 @@ class RobotCommand:
         q.flags.writeable = False
         if qd is not None:
             qd.flags.writeable = False
-        cmd.__dict__.update(mode=CommandMode.POSITION, q=q, qd=qd, tau=None, tool=tool)
+        d = cmd.__dict__
+        d["mode"] = CommandMode.POSITION
+        d["q"] = q
+        d["qd"] = qd
+        d["tau"] = None
+        d["tool"] = tool
         return cmd
 
     @classmethod
@@ -362,7 +390,12 @@ class RobotCommand:
         """
         cmd = object.__new__(cls)
         tau.flags.writeable = False
-        cmd.__dict__.update(mode=CommandMode.TORQUE, q=None, qd=None, tau=tau, tool=tool)
+        d = cmd.__dict__
+        d["mode"] = CommandMode.TORQUE
+        d["q"] = None
+        d["qd"] = None
+        d["tau"] = tau
+        d["tool"] = tool
         return cmd
 
 
