@@ -74,6 +74,11 @@ class Mode(enum.Enum):
     """The run is over; the robots keep the Lock law."""
 
 
+# Members bound once for the per-tick queries: ``Mode.X`` on the class costs ~60 ns in
+# CPython 3.11, a module global ~10 ns.
+_AUTONOMOUS, _LOCK, _TERMINAL = Mode.AUTONOMOUS, Mode.LOCK, Mode.TERMINAL
+
+
 class Outcome(enum.Enum):
     """How a run ended."""
 
@@ -379,8 +384,8 @@ class Automaton:
         """Mode of one robot; in autonomous steps robots the step does not drive are locked."""
         mode = self.mode
         step = self.active_step
-        if mode is Mode.AUTONOMOUS and step is not None and step.robots:
-            return Mode.AUTONOMOUS if robot in step.robots else Mode.LOCK
+        if mode is _AUTONOMOUS and step is not None and step.robots:
+            return _AUTONOMOUS if robot in step.robots else _LOCK
         return mode
 
     @property
@@ -395,7 +400,7 @@ class Automaton:
     @property
     def finished(self) -> bool:
         """True once a terminal state is reached."""
-        return self.mode is Mode.TERMINAL
+        return self.mode is _TERMINAL
 
     # ----------------------------------------------------------------- events
     def _fire(self, event: str, kind: str, reason: str = "", target: str = "") -> TransitionRecord:

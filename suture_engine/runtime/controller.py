@@ -28,6 +28,11 @@ __all__ = ["ModeController"]
 
 FloatArray = NDArray[np.float64]
 
+# Enum members bound once for the per-tick tests: ``Mode.X`` on the class costs ~60 ns
+# in CPython 3.11, a module global ~10 ns.
+_AUTONOMOUS, _MANUAL = Mode.AUTONOMOUS, Mode.MANUAL
+_TORQUE, _VELOCITY = CommandMode.TORQUE, CommandMode.VELOCITY
+
 
 class ModeController:
     """Lock / Manual / Autonomous joint laws for a set of robots.
@@ -94,16 +99,16 @@ class ModeController:
                 self.capture(robot, obs.q)
             self._vel_setpoint.pop(robot, None)
             self._last_mode[robot] = mode
-        if mode is Mode.MANUAL:
-            if command is not None and command.mode is CommandMode.TORQUE:
+        if mode is _MANUAL:
+            if command is not None and command.mode is _TORQUE:
                 assert command.tau is not None
                 return np.array(command.tau)  # shared control under a fixture (6.24)
             return np.array(self._gc[robot].update(obs.q))
-        if mode is Mode.AUTONOMOUS and command is not None:
-            if command.mode is CommandMode.TORQUE:
+        if mode is _AUTONOMOUS and command is not None:
+            if command.mode is _TORQUE:
                 assert command.tau is not None
                 return np.array(command.tau)
-            if command.mode is CommandMode.VELOCITY:
+            if command.mode is _VELOCITY:
                 assert command.qd is not None
                 sp = self._vel_setpoint.get(robot)
                 if sp is None:

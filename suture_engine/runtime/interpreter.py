@@ -64,6 +64,11 @@ GRAVITY = 9.81
 _MODE_VALUES = {m: m.value for m in Mode}
 """Mode -> its name (Mode.value is a descriptor; the tick records it per robot)."""
 
+# Enum members bound once for the per-tick tests: ``Mode.X`` on the class costs ~60 ns
+# in CPython 3.11, a module global ~10 ns.
+_AUTONOMOUS, _MANUAL = Mode.AUTONOMOUS, Mode.MANUAL
+_FAILURE, _SUCCESS = SkillStatus.FAILURE, SkillStatus.SUCCESS
+
 
 class OperatorSource(Protocol):
     """Where operator events come from (scripted, interactive, a replayed trace)."""
@@ -412,7 +417,7 @@ class Interpreter:
     def _skill_tick(self, time_ns: int, obs: Observation, meas: Measurement) -> Command | None:
         a = self.automaton
         spec = a.active_step
-        if a.mode is not Mode.AUTONOMOUS or spec is None or a.active_skill is None:
+        if a.mode is not _AUTONOMOUS or spec is None or a.active_skill is None:
             return None
         assert self.ctx is not None
         try:
@@ -437,11 +442,11 @@ class Interpreter:
         if spec.timeout_s is not None and obs.t - self.ctx.t0 >= spec.timeout_s - 0.5 * self.dt:
             self._record_transitions(time_ns, a.unpredictable("timeout"))
             return None
-        if result.status is SkillStatus.FAILURE:
+        if result.status is _FAILURE:
             reason = f"skill-failure:{result.message}" if result.message else "skill-failure"
             self._record_transitions(time_ns, a.unpredictable(reason))
             return result.command
-        if result.status is SkillStatus.SUCCESS:
+        if result.status is _SUCCESS:
             self._apply_registration(a.active_skill)
             self._record_transitions(time_ns, a.planned())
         return result.command
@@ -534,7 +539,7 @@ class Interpreter:
         torques: dict[str, Any] = {}
         modes: dict[str, str] = {}
         tools: dict[str, Any] = {}
-        if command is None and a.mode is Mode.MANUAL:
+        if command is None and a.mode is _MANUAL:
             command = self._manual_command(obs)
         for name in self.robots:
             mode = a.mode_of(name)
