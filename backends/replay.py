@@ -196,7 +196,7 @@ class ReplayBackend:
         # tick * dt, to the bit as the live backends compute a tick's time (k * period_ns
         # * 1e-9 is a different float on some ticks, and a skill's trajectory sampled at
         # it then differs in the last bit from the recorded run's)
-        return Measurement(k, k * self.dt, robots)
+        return Measurement.trusted(k, k * self.dt, robots)
 
     def apply(self, command: Command) -> None:
         """Keep the last command (the comparison reads the trace the engine writes) and

@@ -396,7 +396,7 @@ class MoveConstrained(Skill):
         e = self._fixture.value(x_meas)
         np.maximum(self._peak_e, np.abs(e), out=self._peak_e)
         if t < self._duration:
-            return StepResult(command)
+            return StepResult.running(command)
         error = float(np.linalg.norm(x_meas[:3] - self._x_goal[:3]))
         if error <= self.TOLERANCE:
             return StepResult(command, SkillStatus.SUCCESS)
