@@ -200,6 +200,8 @@ class MoveConstrained(Skill):
         self._df_list: list[float] = []
         self._c_zero_list: list[float] = []
         self._np: Any = None
+        self._ref_kernel: Any = None
+        self._ref_args: tuple[Any, ...] = ()
         self._final_ref: tuple[Any, Any] | None = None
         self.last_qp: Any = None
         """The last tick's :class:`~suture_engine.control.constrained_qp.QPResult` (traces)."""
@@ -252,6 +254,7 @@ class MoveConstrained(Skill):
         self._t0 = ctx.t0
         self._next_ref = None
         self._final_ref = None
+        self._ref_kernel = None
         q0 = np.array(ctx.start.robots[self._robot].q, dtype=float)
         # Gravity in the base frame, R_base^T g_world; without a pose, E1's own mounting.
         self._gravity_params = E1
@@ -294,6 +297,12 @@ class MoveConstrained(Skill):
             self._df_list = self._df.tolist()
             self._c_zero_list = self._c_zero.tolist()
             self._np = np
+            affine = fx.affine_inverse()
+            if affine is not None:
+                from suture_engine.control._reference_kernel import JIT
+
+                self._ref_kernel = JIT[0]
+                self._ref_args = (self._f0, self._df, self._c_zero, affine[0], affine[1])
         else:
             self._x_goal = goal
         self._duration = max(0.1, 1.5 * float(np.linalg.norm(self._x_goal[:3] - x0[:3])) / p.speed)
@@ -325,15 +334,25 @@ class MoveConstrained(Skill):
     def _reference(self, t: float) -> tuple[Any, Any]:
         """Task reference and its velocity at time t [s] since start (smoothstep in f).
 
-        The velocity is the forward difference over h = 1 ms. ``_at(t + h)`` is kept: at
-        1 kHz it is the next tick's ``_at(t)`` (reused only when the times are equal to
-        the bit). Once both times are past the duration the smoothstep is clamped, so
-        the reference is constant and its velocity exactly zero: computed once.
+        The velocity is the forward difference over h = 1 ms. On a line or a plane (an
+        affine inverse map) one compiled call gives both (:mod:`suture_engine.control.
+        _reference_kernel`, to 1e-12 of :meth:`_at`'s numpy). Otherwise ``_at(t + h)`` is
+        kept: at 1 kHz it is the next tick's ``_at(t)`` (reused only when the times are
+        equal to the bit). Once both times are past the duration the smoothstep is
+        clamped, so the reference is constant and its velocity exactly zero: computed once.
         """
         h = 1e-3
         final = self._final_ref
         if final is not None:
             return final
+        kernel = self._ref_kernel
+        if kernel is not None:  # a line or a plane: both points and v in one compiled call
+            np = self._np
+            x, v = np.empty(4), np.empty(4)
+            kernel(t, h, self._duration, *self._ref_args, x, v)
+            if t >= self._duration:
+                self._final_ref = (x, v)
+            return x, v
         nxt = self._next_ref
         x = nxt[1] if nxt is not None and nxt[0] == t else self._at(t)
         th = t + h

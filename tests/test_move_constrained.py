@@ -230,3 +230,93 @@ def test_reference_is_the_smoothstep_along_the_line_and_reuses_only_equal_times(
         assert v.tobytes() == ((skill._at(t + h) - fresh) / h).tobytes()
     assert skill._final_ref is not None  # past the duration: computed once, velocity 0
     assert not np.any(skill._final_ref[1])
+
+
+def _reference_cases() -> list:
+    from suture_engine.control.fixtures import Plane
+
+    rng = np.random.default_rng(4)
+    fixtures = [
+        Line(point=[0.0, 0.0, 0.0], direction=[0.0, 0.0, 1.0]),
+        Line(point=[0.01, -0.02, 0.03], direction=[1.0, 1.0, -2.0]),
+        Line(point=[0.0, 0.01, 0.0], direction=[0.3, -0.7, 1.1], thesis_form=True),
+        Plane(point=[0.0, 0.0, 0.12], normal=[0.0, 0.2, 1.0]),
+    ]
+    cases = []
+    for fx in fixtures:
+        for _ in range(25):
+            x0 = np.r_[rng.normal(scale=0.05, size=3), rng.uniform(-1, 1)]
+            goal = np.r_[rng.normal(scale=0.05, size=3), rng.uniform(-1, 1)]
+            f0 = fx.free(x0)
+            df = fx.free(fx.project(goal)) - f0
+            cases.append((fx, f0, df, float(rng.uniform(0.1, 3.0))))
+    return cases
+
+
+def test_compiled_reference_matches_the_fixtures_inverse_to_1e12() -> None:
+    """The line/plane reference kernel against d^-1 by the fixture's own numpy (the path
+    of _at) and a numpy forward difference, before, along and after the smoothstep."""
+    from suture_engine.control._reference_kernel import JIT
+
+    kernel = JIT[0]
+    h = 1e-3
+    for fx, f0, df, duration in _reference_cases():
+        d, p0 = fx.affine_inverse()
+        c0 = np.zeros(fx.rows)
+        for t in (-0.01, 0.0, 0.3 * duration, duration - h / 2, duration, duration + 1.0):
+            x, v = np.empty(4), np.empty(4)
+            kernel(t, h, duration, f0, df, c0, d, p0, x, v)
+
+            def at(tt: float, f0=f0, df=df, duration=duration, fx=fx, c0=c0) -> np.ndarray:
+                s = min(max(tt / duration, 0.0), 1.0)
+                return fx.inverse(c0, f0 + s * s * (3.0 - 2.0 * s) * df)
+
+            ex, ex_next = at(t), at(t + h)
+            np.testing.assert_allclose(x, ex, rtol=1e-12, atol=1e-15)
+            # the difference of two references: 1e-12 of the positions over h
+            np.testing.assert_allclose(v, (ex_next - ex) / h, rtol=1e-9, atol=1e-12 / h)
+            if t >= duration:
+                assert np.all(v == 0.0)
+
+
+def test_compiled_reference_equals_its_python_source_bit_for_bit() -> None:
+    from suture_engine.control._reference_kernel import JIT
+
+    kernel, compiled = JIT
+    if not compiled:
+        pytest.skip("numba is not installed: the Python source is what runs")
+    for fx, f0, df, duration in _reference_cases():
+        d, p0 = fx.affine_inverse()
+        for t in (0.0, 0.37 * duration, duration):
+            outs = []
+            for fn in (kernel, kernel.py_func):
+                x, v = np.empty(4), np.empty(4)
+                fn(t, 1e-3, duration, f0, df, np.zeros(fx.rows), d, p0, x, v)
+                outs.append(x.tobytes() + v.tobytes())
+            assert outs[0] == outs[1]
+
+
+def test_autonomous_reference_on_a_line_is_the_compiled_one_and_agrees_with_at() -> None:
+    """A started line step takes the compiled reference (a circle keeps _at's numpy), and
+    along the motion its reference and velocity agree with _at's to 1e-12."""
+    direction = np.array([1.0, 1.0, 2.0])
+    unit = direction / np.linalg.norm(direction)
+    q0 = endobot.inverse_kinematics(0.08 * unit, 0.0)
+    skill = MoveConstrained(
+        {"robot": "arm", "fixture": "line", "direction": tuple(direction),
+         "target": tuple(0.14 * unit), "speed": 0.02}
+    )  # fmt: skip
+    skill.start(_ctx(_obs(0.0, q0)))
+    assert skill._ref_kernel is not None
+    for t in np.linspace(0.0, skill._duration + 0.01, 57):
+        x, v = skill._reference(float(t))
+        ex, ex_next = skill._at(float(t)), skill._at(float(t) + 1e-3)
+        np.testing.assert_allclose(x, ex, rtol=1e-12, atol=1e-15)
+        np.testing.assert_allclose(v, (ex_next - ex) / 1e-3, rtol=1e-9, atol=1e-9)
+    circle = MoveConstrained(
+        {"robot": "arm", "fixture": "circle", "point": (0.0, 0.0, 0.12), "radius": 0.03,
+         "target": (0.0, 0.03, 0.12)}
+    )  # fmt: skip
+    start = Circle(center=np.array([0.0, 0.0, 0.12]), radius=0.03).inverse(np.zeros(2), np.zeros(2))
+    circle.start(_ctx(_obs(0.0, endobot.inverse_kinematics(start[:3], 0.0))))
+    assert circle._ref_kernel is None

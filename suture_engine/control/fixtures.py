@@ -138,6 +138,11 @@ class EqualityFixture(Fixture):
         per-tick form: ``cf`` is not kept)."""
         return self.inverse(cf[: self.rows], cf[self.rows :])
 
+    def affine_inverse(self) -> tuple[Array, Array] | None:
+        """``(D, p0)`` when the inverse map is affine, ``d^-1([c; f]) = D [c; f] + (p0, 0)``
+        with D (4, 4) and p0 [m] (a line, a plane), else None (a circle)."""
+        return None
+
 
 @dataclass(frozen=True, eq=False)
 class Line(EqualityFixture):
@@ -228,6 +233,11 @@ class Line(EqualityFixture):
         out = dinv @ cf
         out[:3] += self.point
         return out
+
+    def affine_inverse(self) -> tuple[Array, Array]:
+        """``(D, p0)``: ``d^-1([c; f]) = D [c; f] + (p0, 0)`` (shared, read-only)."""
+        dinv: Array = self._dinv  # type: ignore[attr-defined]
+        return dinv, self.point
 
 
 @dataclass(frozen=True, eq=False)
@@ -383,6 +393,16 @@ class Plane(EqualityFixture):
         jf: Array = self._jf  # type: ignore[attr-defined]
         p = self.point + float(c[0]) * self.normal + f[0] * jf[0, :3] + f[1] * jf[1, :3]
         return np.array([p[0], p[1], p[2], float(f[2])])
+
+    def affine_inverse(self) -> tuple[Array, Array]:
+        """``(D, p0)``: ``d^-1([c; f]) = D [c; f] + (p0, 0)``, D's columns (n, u, v, e_roll)."""
+        jf: Array = self._jf  # type: ignore[attr-defined]
+        d = np.zeros((4, 4))
+        d[:3, 0] = self.normal
+        d[:3, 1] = jf[0, :3]
+        d[:3, 2] = jf[1, :3]
+        d[3, 3] = 1.0
+        return d, self.point
 
 
 @dataclass(frozen=True, eq=False)
