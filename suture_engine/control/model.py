@@ -48,6 +48,9 @@ class ControlModel:
         viscous: estimated viscous coefficients ``Fv^`` [N m s / N s], shape ``(n,)``.
         coriolis_vector: optional ``(q, qd) -> C^(q, qd) qd``, cheaper than the matrix
             when only the product is needed.
+        gravity_floats: optional ``G^(q)`` on Python floats (joints as a list) [N m / N]:
+            the same numbers as ``gravity_vector`` without an array each way (the PD
+            law's per-tick path).
     """
 
     mass_matrix: Callable[[FloatArray], FloatArray]
@@ -57,8 +60,6 @@ class ControlModel:
     viscous: FloatArray
     coriolis_vector: Callable[[FloatArray, FloatArray], FloatArray] | None = None
     gravity_floats: Callable[[list[float]], list[float]] | None = None
-    """Optional ``G^(q)`` on Python floats (joints as a list): the same numbers as
-    ``gravity_vector``, without an array each way (the PD law's per-tick path)."""
 
     def coriolis_torque(self, q: FloatArray, qd: FloatArray) -> FloatArray:
         """``C^(q, qd) qd`` [N m, N] (3.40).
