@@ -202,6 +202,8 @@ class MoveConstrained(Skill):
         self._np: Any = None
         self._ref_kernel: Any = None
         self._ref_args: tuple[Any, ...] = ()
+        self._track_kernel: Any = None
+        self._track_args: tuple[Any, ...] = ()
         self._final_ref: tuple[Any, Any] | None = None
         self.last_qp: Any = None
         """The last tick's :class:`~suture_engine.control.constrained_qp.QPResult` (traces)."""
@@ -255,6 +257,7 @@ class MoveConstrained(Skill):
         self._next_ref = None
         self._final_ref = None
         self._ref_kernel = None
+        self._track_kernel = None
         q0 = np.array(ctx.start.robots[self._robot].q, dtype=float)
         # Gravity in the base frame, R_base^T g_world; without a pose, E1's own mounting.
         self._gravity_params = E1
@@ -299,12 +302,18 @@ class MoveConstrained(Skill):
             self._np = np
             affine = fx.affine_inverse()
             if affine is not None:
-                from suture_engine.control._reference_kernel import JIT
+                from suture_engine.control._move_kernels import JIT
 
                 self._ref_kernel = JIT[0]
                 self._ref_args = (self._f0, self._df, self._c_zero, affine[0], affine[1])
         else:
             self._x_goal = goal
+        rows = fx.affine()
+        if rows is not None:  # a line or a plane: C(x) = Jc[:, :3] (p - p0)
+            from suture_engine.control._move_kernels import JIT
+
+            self._track_kernel = JIT[1]
+            self._track_args = (rows[0], rows[1], self._peak_e)
         self._duration = max(0.1, 1.5 * float(np.linalg.norm(self._x_goal[:3] - x0[:3])) / p.speed)
 
     def _target_world(self, ctx: Any) -> tuple[float, float, float]:
@@ -336,7 +345,7 @@ class MoveConstrained(Skill):
 
         The velocity is the forward difference over h = 1 ms. On a line or a plane (an
         affine inverse map) one compiled call gives both (:mod:`suture_engine.control.
-        _reference_kernel`, to 1e-12 of :meth:`_at`'s numpy). Otherwise ``_at(t + h)`` is
+        _move_kernels`, to 1e-12 of :meth:`_at`'s numpy). Otherwise ``_at(t + h)`` is
         kept: at 1 kHz it is the next tick's ``_at(t)`` (reused only when the times are
         equal to the bit). Once both times are past the duration the smoothstep is
         clamped, so the reference is constant and its velocity exactly zero: computed once.
@@ -402,18 +411,29 @@ class MoveConstrained(Skill):
         self.last_qp = res
         if "extension_rate" in res.active:
             self._throttled += ctx.dt  # the tension bound slows the motion on purpose
-        q_ref += res.qdot * ctx.dt
-        # Fresh arrays, handed over: q_ref.copy() here, res.qdot a copy the QP made.
-        command = Command({self._robot: RobotCommand.trusted_position(q_ref.copy(), res.qdot)})
-        if self._qp.consecutive_failures >= self.MAX_QP_FAILURES:
+        failing = self._qp.consecutive_failures >= self.MAX_QP_FAILURES
+        track = self._track_kernel
+        if track is not None:
+            # a line or a plane: q_ref's Euler step (numpy's, to the bit), the command's
+            # copy and the deviation's peak in one compiled call
+            x_meas = kin.task_vector(ro.q)
+            q_cmd = np.empty(4)
+            track(q_ref, res.qdot, ctx.dt, q_cmd, x_meas, *self._track_args, not failing)
+        else:
+            q_ref += res.qdot * ctx.dt
+            q_cmd = q_ref.copy()
+        # Fresh arrays, handed over: q_cmd here, res.qdot a copy the QP made.
+        command = Command({self._robot: RobotCommand.trusted_position(q_cmd, res.qdot)})
+        if failing:
             return StepResult(
                 command,
                 SkillStatus.FAILURE,
                 f"QP not solved for {self._qp.consecutive_failures} ticks ({res.status})",
             )
-        x_meas = kin.task_vector(ro.q)
-        e = self._fixture.value(x_meas)
-        np.maximum(self._peak_e, np.abs(e), out=self._peak_e)
+        if track is None:
+            x_meas = kin.task_vector(ro.q)
+            e = self._fixture.value(x_meas)
+            np.maximum(self._peak_e, np.abs(e), out=self._peak_e)
         if t < self._duration:
             return StepResult.running(command)
         error = float(np.linalg.norm(x_meas[:3] - self._x_goal[:3]))

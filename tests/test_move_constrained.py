@@ -256,7 +256,7 @@ def _reference_cases() -> list:
 def test_compiled_reference_matches_the_fixtures_inverse_to_1e12() -> None:
     """The line/plane reference kernel against d^-1 by the fixture's own numpy (the path
     of _at) and a numpy forward difference, before, along and after the smoothstep."""
-    from suture_engine.control._reference_kernel import JIT
+    from suture_engine.control._move_kernels import JIT
 
     kernel = JIT[0]
     h = 1e-3
@@ -280,9 +280,9 @@ def test_compiled_reference_matches_the_fixtures_inverse_to_1e12() -> None:
 
 
 def test_compiled_reference_equals_its_python_source_bit_for_bit() -> None:
-    from suture_engine.control._reference_kernel import JIT
+    from suture_engine.control._move_kernels import JIT
 
-    kernel, compiled = JIT
+    kernel, _, compiled = JIT
     if not compiled:
         pytest.skip("numba is not installed: the Python source is what runs")
     for fx, f0, df, duration in _reference_cases():
@@ -320,3 +320,41 @@ def test_autonomous_reference_on_a_line_is_the_compiled_one_and_agrees_with_at()
     start = Circle(center=np.array([0.0, 0.0, 0.12]), radius=0.03).inverse(np.zeros(2), np.zeros(2))
     circle.start(_ctx(_obs(0.0, endobot.inverse_kinematics(start[:3], 0.0))))
     assert circle._ref_kernel is None
+
+
+def test_compiled_step_and_deviation_peak_match_numpy() -> None:
+    """integrate_and_track: q_ref's Euler step is numpy's ``q_ref += qdot * dt`` to the
+    bit; the deviation peak is np.maximum(peak, |fixture.value(x)|) to 1e-12 (NaN kept);
+    compiled and Python source agree bit for bit."""
+    from suture_engine.control._move_kernels import JIT
+    from suture_engine.control.fixtures import Plane
+
+    _, track, compiled = JIT
+    rng = np.random.default_rng(8)
+    for fx in (
+        Line(point=[0.01, -0.02, 0.03], direction=[1.0, 1.0, -2.0]),
+        Line(point=[0.0, 0.01, 0.0], direction=[0.3, -0.7, 1.1], thesis_form=True),
+        Plane(point=[0.0, 0.0, 0.12], normal=[0.0, 0.2, 1.0]),
+    ):
+        jc, p0 = fx.affine()
+        fns = [track, track.py_func] if compiled else [track]
+        q0 = rng.normal(size=4)
+        states = [(q0.copy(), np.zeros(fx.rows)) for _ in fns]  # (q_ref, peak) per function
+        expected_q, expected_peak = q0.copy(), np.zeros(fx.rows)
+        for k in range(300):
+            qdot, x = rng.normal(scale=0.1, size=4), rng.normal(scale=0.05, size=4)
+            on = k % 7 != 3
+            expected_q += qdot * 1e-3
+            if on:
+                np.maximum(expected_peak, np.abs(fx.value(x)), out=expected_peak)
+            cmds = []
+            for fn, (q_ref, peak) in zip(fns, states, strict=True):
+                q_cmd = np.empty(4)
+                fn(q_ref, qdot, 1e-3, q_cmd, x, jc, p0, peak, on)
+                assert q_ref.tobytes() == expected_q.tobytes() == q_cmd.tobytes()
+                np.testing.assert_allclose(peak, expected_peak, rtol=1e-12, atol=1e-15)
+                cmds.append(peak.tobytes())
+            assert len(set(cmds)) == 1
+        q_ref, peak = states[0]
+        track(q_ref, np.zeros(4), 1e-3, np.empty(4), np.full(4, np.nan), jc, p0, peak, True)
+        assert np.all(np.isnan(peak))  # as np.maximum: a NaN deviation stays
