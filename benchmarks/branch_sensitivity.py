@@ -356,6 +356,7 @@ def run_branches(
             "sim_time_s": round(summary.sim_time_s, 3), "ticks": summary.ticks,
             "knot": first_knot.get("type") if isinstance(first_knot, dict) else None,
             "max_tension_N": summary.max_tension_N,
+            "last_fault": summary.last_fault,
             "peak_true_tension_N": round(recorder.peak_true_N, 3),
             "branch_s": round(state["t_branch"], 3),
             "wall_s": round(time.perf_counter() - state["wall0"], 1),
@@ -388,6 +389,9 @@ def format_results(results: Sequence[Mapping[str, Any]]) -> str:
             f"{r['sim_time_s']:.1f} s simulated, knot {r['knot']}, "
             f"true peak {r['peak_true_tension_N']:.2f} N, branched at {r['branch_s']:.2f} s"
         )
+        fault = r.get("last_fault")
+        if fault:
+            lines.append(f"    last fault: {fault['step']} at {fault['t_s']:.2f} s: {fault['reason']}")
         for s in r["steps"]:
             travel = ", ".join(f"{k} {v:.1f} mm" for k, v in s["travel_mm"].items())
             span = f"{s['start_s']:8.2f}-{s['end_s']:8.2f} s"

@@ -70,6 +70,16 @@ class MoveToParams(SkillParams):
     (measured as for ``taut_within``) before the guard may be met. Met earlier, the move
     stops there and fails: the strand was already held by something else (with
     ``taut_within``, a window on where the strand goes taut). ``None``: from the start."""
+    free_of: RoleRef | None = None
+    """With ``until_tension``: a role whose tool the strand must not be anchored on. When
+    the guard is met, that robot's own base-sensor estimate of the pull towards this
+    robot's tool (along the line from this tool tip to that one at the step's start,
+    tared there) must be at most ``free_share`` times this robot's; more, and the move
+    stops there and fails: the strand drawn taut ends on that tool (a loop still round
+    it), not beyond it. ``None``: no such check."""
+    free_share: float = Field(default=0.3, gt=0.0, le=1.0)
+    """With ``free_of``: the largest share of this robot's estimated tension that the
+    other robot may take when the guard is met [-]."""
 
 
 class MoveTo(Skill):
@@ -108,6 +118,8 @@ class MoveTo(Skill):
         self._est: Any = None
         self._tip0: Any = None
         self._unit: Any = None
+        self._other = ""
+        self._other_est: Any = None
 
     @classmethod
     def check(cls, params: SkillParams, scene: Any) -> list[Problem]:
@@ -127,6 +139,24 @@ class MoveTo(Skill):
                         path=name,
                     )
                 )
+        if params.free_of is not None and params.until_tension is None:
+            problems.append(
+                Problem(
+                    "free-of-without-guard",
+                    "free_of is checked when a guarded move's tension is met: "
+                    "give until_tension too",
+                    path="free_of",
+                )
+            )
+        if params.free_of is not None and params.free_of == params.robot:
+            problems.append(
+                Problem(
+                    "free-of-self",
+                    f"free_of must name the other robot's role, not the moving one "
+                    f"({params.robot!r})",
+                    path="free_of",
+                )
+            )
         within, after = params.taut_within, params.taut_after
         if within is not None and after is not None and not after < within:
             problems.append(
@@ -203,6 +233,13 @@ class MoveTo(Skill):
             tip0 = tool_tip_world(q0, self._base)
             motion = self._goal - tip0
             self._est = _guard_estimator(ctx, self._robot, motion)
+            if p.free_of is not None:
+                # The strand anchored on the other tool pulls it towards this one: that
+                # tool "pulls" away from this tip, the estimator's direction.
+                self._other = ctx.robot(p.free_of)
+                other_q0 = ctx.start.robots[self._other].q
+                away = tool_tip_world(other_q0, ctx.base_poses.get(self._other)) - tip0
+                self._other_est = _guard_estimator(ctx, self._other, away)
             if p.taut_within is not None or p.taut_after is not None:
                 self._tip0 = tip0
                 self._unit = motion / distance
@@ -228,6 +265,10 @@ class MoveTo(Skill):
             ro = obs.robots[self._robot]
             tension = self._est.update(ro.base_wrench, ro.q).tension
             assert p.until_tension is not None
+            other_tension = math.nan
+            if self._other_est is not None:  # updated every tick: its filter runs on
+                oo = obs.robots[self._other]
+                other_tension = self._other_est.update(oo.base_wrench, oo.q).tension
             travel = math.nan
             if self._unit is not None:
                 tip = tool_tip_world(ro.q, self._base)
@@ -241,6 +282,14 @@ class MoveTo(Skill):
                         SkillStatus.FAILURE,
                         f"tension {p.until_tension:.2f} N reached after only {travel * 1e3:.1f} "
                         f"mm of travel (not before {p.taut_after * 1e3:.2f} mm)",
+                    )
+                if self._other_est is not None and other_tension > p.free_share * tension:
+                    return StepResult(
+                        hold,
+                        SkillStatus.FAILURE,
+                        f"tension {tension:.2f} N reached with {other_tension:.2f} N of it on "
+                        f"{p.free_of}'s tool (more than {p.free_share:.2f} of it): the strand "
+                        "is anchored there",
                     )
                 return StepResult(hold, SkillStatus.SUCCESS)
             if p.taut_within is not None:

@@ -151,6 +151,62 @@ def test_a_guard_met_past_its_travel_floor_succeeds_as_without_it() -> None:
     assert 0.003 < rise < 0.009
 
 
+def _free_of_run(other_N: float) -> tuple[str, float, str]:
+    """The guarded move of ``guarded-free-of.yaml``: from 0.8 s a 1 N pull holds the
+    stitcher back along -x and, as a strand anchored on the grasper would, ``other_N`` [N]
+    pulls the grasper's tip towards the stitcher's. Returns the outcome, when the move
+    ended [s] and the last fault's reason."""
+    from test_monitor import PROCS, _pybullet_run
+
+    ended: list[float] = []
+
+    def on_tick(it: Any) -> None:
+        t = round(it._obs.t, 3)
+        if t == 0.8:
+            it.backend.apply_external_force("endobot_1", (-1.0, 0.0, 0.0), 0.5)
+            if other_N > 0.0:
+                tip1 = np.asarray(it.backend.robots["endobot_1"].true_tool_pose()[0])
+                tip2 = np.asarray(it.backend.robots["endobot_2"].true_tool_pose()[0])
+                u = (tip1 - tip2) / np.linalg.norm(tip1 - tip2)
+                it.backend.apply_external_force("endobot_2", tuple(other_N * u), 0.5)
+        if it.automaton.step_name != "take-up" and not ended:
+            ended.append(t)
+
+    interp, summary = _pybullet_run(PROCS / "guarded-free-of.yaml", [], on_tick, 6.0)
+    fault = interp.last_fault or {}
+    return summary.outcome, (ended or [math.inf])[0], str(fault.get("reason", ""))
+
+
+def test_a_guard_met_with_the_strand_free_of_the_other_tool_succeeds() -> None:
+    """free_of grasper, share 0.3: the grasper feels 0.1 N of the stitcher's 1 N pull
+    (a strand anchored beyond it): the move stops at the pull, done."""
+    outcome, ended, reason = _free_of_run(0.1)
+    assert outcome == "succeeded", reason
+    assert 0.8 < ended < 0.9
+
+
+def test_a_guard_met_with_the_strand_anchored_on_the_other_tool_fails() -> None:
+    """free_of grasper, share 0.3: the grasper feels 0.8 N of the stitcher's 1 N pull (the
+    strand ends on its tool): the move stops at the pull, failed, and says so."""
+    outcome, ended, reason = _free_of_run(0.8)
+    assert outcome == "aborted"  # the step's policy: then abort
+    assert 0.8 < ended < 0.9
+    assert "anchored" in reason and "grasper" in reason
+
+
+def test_free_of_needs_a_guard_and_another_robot() -> None:
+    params = MoveTo.Params.model_validate(
+        {"robot": "arm", "target": (0.0, 0.0, 0.1), "free_of": "other"}
+    )
+    assert [(p.code, p.path) for p in MoveTo.check(params, None)] == [
+        ("free-of-without-guard", "free_of")
+    ]
+    guarded = params.model_copy(update={"until_tension": 0.5})
+    assert MoveTo.check(guarded, None) == []
+    itself = guarded.model_copy(update={"free_of": "arm"})
+    assert [p.code for p in MoveTo.check(itself, None)] == ["free-of-self"]
+
+
 def test_taut_within_without_a_guard_is_a_validation_problem() -> None:
     params = MoveTo.Params.model_validate(
         {"robot": "arm", "target": (0.0, 0.0, 0.1), "taut_within": 0.003}
