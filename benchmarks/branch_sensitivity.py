@@ -391,7 +391,8 @@ def format_results(results: Sequence[Mapping[str, Any]]) -> str:
         )
         fault = r.get("last_fault")
         if fault:
-            lines.append(f"    last fault: {fault['step']} at {fault['t_s']:.2f} s: {fault['reason']}")
+            where = f"{fault['step']} at {fault['t_s']:.2f} s"
+            lines.append(f"    last fault: {where}: {fault['reason']}")
         for s in r["steps"]:
             travel = ", ".join(f"{k} {v:.1f} mm" for k, v in s["travel_mm"].items())
             span = f"{s['start_s']:8.2f}-{s['end_s']:8.2f} s"
