@@ -91,16 +91,16 @@ def _random_instance(
     }
 
 
-@pytest.mark.parametrize(
-    "fixtures",
-    [
-        (Line(direction=[1.0, 1.0, 2.0]),),
-        (Line(direction=[1.0, 1.0, 2.0]), Cone(axis=[0.0, 0.0, 1.0], half_angle=0.62)),
-        (Circle(center=[0.0, 0.0, 0.15], radius=0.05),),
-        (Plane(point=[0.0, 0.0, 0.12], normal=[0.0, 0.2, 1.0]),),
-    ],
-    ids=["line", "line+cone", "circle", "plane"],
-)
+FIXTURE_SETS = {
+    "line": (Line(direction=[1.0, 1.0, 2.0]),),
+    "line+cone": (Line(direction=[1.0, 1.0, 2.0]), Cone(axis=[0.0, 0.0, 1.0], half_angle=0.62)),
+    "circle": (Circle(center=[0.0, 0.0, 0.15], radius=0.05),),
+    "plane": (Plane(point=[0.0, 0.0, 0.12], normal=[0.0, 0.2, 1.0]),),
+}
+"""Fixture sets the QP is checked on, by name (the tests' ids)."""
+
+
+@pytest.mark.parametrize("fixtures", list(FIXTURE_SETS.values()), ids=list(FIXTURE_SETS))
 def test_solution_agrees_with_scipy_on_random_instances(fixtures: tuple) -> None:
     rng = np.random.default_rng(7)
     qp = ConstrainedQP(fixtures, extension_rate=True, settings=TIGHT)
@@ -433,18 +433,18 @@ def _close(actual: np.ndarray, expected: np.ndarray) -> None:
     np.testing.assert_allclose(actual, expected, rtol=1e-12, atol=1e-12 * scale)
 
 
-@pytest.mark.parametrize(
-    "fixtures",
-    [
-        (Line(direction=[1.0, 1.0, 2.0]),),
-        (Line(direction=[1.0, 1.0, 2.0]), Cone(axis=[0.0, 0.0, 1.0], half_angle=0.62)),
-        (Circle(center=[0.0, 0.0, 0.15], radius=0.05),),
-        (Plane(point=[0.0, 0.0, 0.12], normal=[0.0, 0.2, 1.0]),),
-        (Line(direction=[1.0, 1.0, 2.0]), Plane(point=[0.0, 0.0, 0.1], normal=[1.0, -1.0, 0.0])),
-        (),
-    ],
-    ids=["line", "line+cone", "circle", "plane", "line+plane", "none"],
-)
+FIXTURE_SETS_MORE = {
+    **FIXTURE_SETS,
+    "line+plane": (
+        Line(direction=[1.0, 1.0, 2.0]),
+        Plane(point=[0.0, 0.0, 0.1], normal=[1.0, -1.0, 0.0]),
+    ),
+    "none": (),
+}
+"""FIXTURE_SETS, with two rows of equalities and with no fixture at all."""
+
+
+@pytest.mark.parametrize("fixtures", list(FIXTURE_SETS_MORE.values()), ids=list(FIXTURE_SETS_MORE))
 @pytest.mark.parametrize("rate", [True, False], ids=["rate", "no-rate"])
 def test_assembly_matches_a_dense_numpy_build(fixtures: tuple, rate: bool) -> None:
     """matrices() (what the compiled kernel wrote) and the value arrays handed to OSQP

@@ -22,11 +22,11 @@ autonomous move-constrained step starts on a line or a plane (never by ``suture 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+from suture_engine.control._compile import compile_kernels
 
 __all__ = ["JIT", "integrate_and_track", "smoothstep_reference"]
 
@@ -124,16 +124,5 @@ def integrate_and_track(
             peak[r] = a
 
 
-def _jit() -> tuple[Callable[..., Any], Callable[..., Any], bool]:
-    """(smoothstep_reference, integrate_and_track, compiled): numba's compiled versions,
-    or the Python ones."""
-    try:
-        import numba
-    except ImportError:  # the same numbers, slower
-        return smoothstep_reference, integrate_and_track, False
-    jit = numba.njit(cache=True, nogil=True)
-    return jit(smoothstep_reference), jit(integrate_and_track), True
-
-
-JIT = _jit()
+JIT = compile_kernels(smoothstep_reference, integrate_and_track)
 """(smoothstep_reference, integrate_and_track, compiled): what move-constrained calls."""

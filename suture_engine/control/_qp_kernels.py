@@ -21,11 +21,11 @@ loads this module.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
-from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
+
+from suture_engine.control._compile import compile_kernels
 
 __all__ = [
     "C_DAMP",
@@ -308,16 +308,5 @@ def finish(
     return slack
 
 
-def _jit() -> tuple[Callable[..., Any], Callable[..., Any], bool]:
-    """(assemble, finish, compiled): numba's compiled versions, or the Python ones."""
-    try:
-        import numba
-    except ImportError:  # the same numbers, slower
-        return assemble, finish, False
-    # cache: compiled once per machine (stored beside this file, or numba's cache folder)
-    jit = numba.njit(cache=True, nogil=True)
-    return jit(assemble), jit(finish), True
-
-
-JIT = _jit()
+JIT = compile_kernels(assemble, finish)
 """(assemble, finish, compiled): the functions the QP calls each tick."""
