@@ -43,6 +43,8 @@ BUILTIN_SKILLS: dict[str, str] = {
     "hold": "skills.hold:Hold",
     "move-to": "skills.move_to:MoveTo",
     "register": "skills.register:Register",
+    "cut-suture": "skills.reload:CutSuture",
+    "load-suture": "skills.reload:LoadSuture",
     "wait-for-operator": "skills.wait_for_operator:WaitForOperator",
 }
 """Name -> ``module:Class`` of the skills shipped with the engine."""

@@ -254,3 +254,53 @@ def test_a_taut_stitch_in_a_shallow_channel_is_a_bite_a_half_pulled_one_is_not()
         * MM
     )  # measured: algorithm 3, the thread turned back 3 mm short of the exit hole
     assert find_bites(half, SURFACE, NORMAL, wound=wound) == []
+
+
+def test_an_interrupted_suture_is_one_entry_per_thread_in_order_along_the_wound() -> None:
+    # three threads, one stitch each, loaded (and cut) in the halving order: middle first
+    middle, left, right = (_thread([site]) for site in (SITES[1], SITES[0], SITES[2]))
+    wound = ((-15 * MM, 0.0, 0.0), (15 * MM, 0.0, 0.0))
+    ev = evaluate(right, [1.0], None, SURFACE, NORMAL, None, 0.5 * MM, wound, cut=[middle, left])
+    assert isinstance(ev.knot, list)
+    # along the wound: x = -5, 0, +6 mm
+    assert [k["type"] for k in ev.knot] == ["square", "unknot", "granny"]
+    assert [k["stitch"] for k in ev.knot] == [1, 2, 3]
+    assert [k["thread"] for k in ev.knot] == [2, 1, 3]
+    assert [k["cut"] for k in ev.knot] == [True, True, False]
+    assert all(k["through_tissue"] for k in ev.knot)
+    stitches = ev.metrics["stitches"]
+    assert stitches["count"] == 3
+    assert stitches["spacing_mean_mm"] == pytest.approx(5.5)  # 5 and 6 mm
+    assert stitches["spacing_sd_mm"] == pytest.approx(np.std([5.0, 6.0], ddof=1), abs=1e-4)
+    # one thread alone keeps the single-thread form (a dict, no numbering)
+    alone = evaluate(left, [1.0], None, SURFACE, NORMAL, None, 0.5 * MM, wound)
+    assert isinstance(alone.knot, dict) and "thread" not in alone.knot
+
+
+def test_a_cut_thread_without_a_loaded_one_is_still_evaluated() -> None:
+    ev = evaluate(None, [1.0], None, SURFACE, NORMAL, None, 0.5 * MM, cut=[_thread(SITES[:1])])
+    assert isinstance(ev.knot, dict) and ev.knot["type"] == "square"
+    assert ev.metrics["stitches"]["count"] == 1
+
+
+def test_evaluate_trace_reads_the_cut_threads(tmp_path: Path) -> None:
+    from suture_engine.trace import channels
+    from suture_engine.trace.synthetic import synthetic_meta
+    from suture_engine.trace.writer import TraceWriter
+
+    path = tmp_path / "cut.mcap"
+    first, second = _thread([SITES[0]]), _thread([SITES[2]])
+    with TraceWriter(path, synthetic_meta()) as w:
+        w.write(channels.GROUND_TRUTH_SUTURE, 0, {"centerline": first.tolist()})
+        w.write(channels.GROUND_TRUTH_SUTURE_CUT, 1000, {"centerline": first.tolist()})
+        w.write(channels.GROUND_TRUTH_SUTURE, 2000, {"centerline": second.tolist()})
+    ev = evaluate_trace(path, SURFACE, NORMAL, contact_diameter=0.5 * MM)
+    assert isinstance(ev.knot, list)
+    assert [(k["type"], k["cut"]) for k in ev.knot] == [("square", True), ("granny", False)]
+    # cut and nothing loaded after: the cut thread alone, not counted twice
+    only = tmp_path / "only.mcap"
+    with TraceWriter(only, synthetic_meta()) as w:
+        w.write(channels.GROUND_TRUTH_SUTURE, 0, {"centerline": first.tolist()})
+        w.write(channels.GROUND_TRUTH_SUTURE_CUT, 1000, {"centerline": first.tolist()})
+    ev = evaluate_trace(only, SURFACE, NORMAL, contact_diameter=0.5 * MM)
+    assert isinstance(ev.knot, dict) and ev.knot["type"] == "square"

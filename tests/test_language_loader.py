@@ -118,15 +118,21 @@ def test_surgeons_knot_first_throw_has_two_turns() -> None:
 def test_interrupted_suture_ties_three_stitches_5mm_apart() -> None:
     proc = load_procedure(PROCEDURES / "interrupted-suture.yaml")
     assert proc.scene is not None
+    points = proc.scene.tissue.points
     entries = []
-    for name in ("stitch-1", "stitch-2", "stitch-3"):
-        square = proc.states[name].use
+    for k in (2, 1, 3):  # the halving order: the middle stitch first
+        square = proc.states[f"knot-{k}"].use
         assert square is not None and square.name == "square-knot"
-        # each square knot makes its own stitch first
-        assert square.params["stitch"] is True
-        assert square.states["simple-knot"].use.states["stitch"].enabled is True  # type: ignore[union-attr]
-        entries.append(proc.scene.tissue.points[square.params["entry"]])
-    xs = [e[0] for e in entries]
+        assert square.params["entry"] == f"entry_{k}" and square.params["exit"] == f"exit_{k}"
+        entries.append(points[square.params["entry"]])
+        # each stitch's suture is cut once it is tied
+        assert proc.states[f"cut-{k}"].skill == "cut-suture"
+    for k in (1, 3):  # and the next one loaded at its site, the stitcher over its exit
+        load = proc.states[f"load-{k}"]
+        assert load.skill == "load-suture"
+        assert (load.params.entry, load.params.exit) == (f"entry_{k}", f"exit_{k}")  # type: ignore[union-attr]
+        assert proc.states[f"stitcher-over-{k}"].params.target == f"exit_{k}"  # type: ignore[union-attr]
+    xs = sorted(e[0] for e in entries)
     assert xs[1] - xs[0] == pytest.approx(0.005) and xs[2] - xs[1] == pytest.approx(0.005)
 
 

@@ -212,6 +212,9 @@ class PyBulletBackend:
         self.suture_stiffness_scale = suture_stiffness_scale
         self.scene: Any = None
         """The :class:`backends.pybullet.scene.Scene` when the surgical scene is built."""
+        self._scene_model: Any = None
+        self.cut_threads: list[Any] = []
+        """The threads cut so far (:class:`backends.pybullet.reload.CutThread`), in order."""
         self._slips_seen: dict[str, int] = {}
         """Per robot, how many of its grasper's slips :meth:`backend_events` has given."""
         self._stalls_seen: dict[str, int] = {}
@@ -262,6 +265,8 @@ class PyBulletBackend:
         self._hands = []
         self._slips_seen = {}
         self._stalls_seen = {}
+        self._scene_model = scene
+        self.cut_threads = []
         self.tick = 0
         self._start_q = dict(self._q0)
         base_positions = {}
@@ -425,12 +430,14 @@ class PyBulletBackend:
         if scene is not None:
             for tool in scene.tools.values():
                 tool.step()
-            scene.suture.pre_step()
+            if scene.suture is not None:
+                scene.suture.pre_step()
             if scene.tissue is not None:
                 scene.tissue.pre_step()
         self._p.stepSimulation(physicsClientId=self.client)
         if scene is not None:
-            scene.suture.stepped()
+            if scene.suture is not None:
+                scene.suture.stepped()
             scene.time += self.dt
 
     def _drive_tool(self, name: str, old: ToolState, new: ToolState) -> None:
@@ -697,9 +704,65 @@ class PyBulletBackend:
             getters[f"{name}/tool_tip"] = functools.partial(_tool_tip, sim)
         if self.scene is not None:
             suture = self.scene.suture
-            getters["centerline"] = suture.centerline
-            getters["tension_N"] = lambda: _largest(suture.tensions())
+            if suture is not None:
+                getters["centerline"] = suture.centerline
+                getters["tension_N"] = lambda: _largest(suture.tensions())
+            if self.cut_threads:
+                cut = tuple(c.centerline for c in self.cut_threads)
+                getters["cut_centerlines"] = lambda: cut
         return _LazyTruth(getters)
+
+    def cut_suture(self) -> Any:
+        """Cut the thread and take it out of the world (an interrupted suture: the
+        assistant cuts the tied stitch's ends; :func:`backends.pybullet.reload.cut_thread`).
+
+        Returns:
+            The cut thread (:class:`~backends.pybullet.reload.CutThread`): ground truth,
+            for evaluation and traces only. It is kept in :attr:`cut_threads`, and
+            :meth:`ground_truth` gives the cut centerlines as ``cut_centerlines``.
+
+        Raises:
+            BackendError: no surgical scene, or no thread to cut.
+        """
+        from backends.pybullet.reload import cut_thread
+
+        if self.scene is None:
+            raise BackendError(self.name, "no surgical scene: there is no thread to cut")
+        try:
+            cut = cut_thread(self.scene)
+        except SutureError as exc:
+            raise BackendError(self.name, str(exc)) from None
+        self.cut_threads.append(cut)
+        return cut
+
+    def load_suture(self, entry: str, exit: str) -> None:
+        """Load a new thread for the stitch from tissue point ``entry`` to ``exit``, in the
+        backend's start state (``stitched``: the stitch made, the needle in the
+        stitcher's holding jaw where the stitcher is; ``needle``: the thread hanging from
+        it). :func:`backends.pybullet.reload.load_thread`.
+
+        Raises:
+            BackendError: no surgical scene, a thread still in the world, another start
+                state, an unknown point, or a thread too short to reach the jaw.
+        """
+        from backends.pybullet.reload import load_thread
+
+        if self.scene is None:
+            raise BackendError(self.name, "no surgical scene: no thread can be loaded")
+        model = self._scene_model
+        start = self.start or getattr(getattr(model, "suture", None), "start", None) or "needle"
+        try:
+            load_thread(
+                self.scene,
+                model,
+                entry,
+                exit,
+                start,
+                self.tail,
+                self.suture_bending_stiffness * self.suture_stiffness_scale,
+            )
+        except SutureError as exc:
+            raise BackendError(self.name, f"cannot load a suture: {exc}") from None
 
     def close(self) -> None:
         """Disconnect; idempotent."""

@@ -135,7 +135,8 @@ class Scene:
     Attributes:
         client: PyBullet physics client id (``p.DIRECT``).
         seed: the seed the scene was built with.
-        suture: the thread.
+        suture: the thread; None once cut and until the next is loaded
+            (:mod:`backends.pybullet.reload`).
         tissue: the tissue pad, or None.
         tools: tool tips by name.
         time: simulated time since the scene was built [s].
@@ -144,7 +145,7 @@ class Scene:
 
     client: int
     seed: int
-    suture: Suture
+    suture: Suture | None
     tissue: Tissue | None = None
     tools: dict[str, Tool] = field(default_factory=dict)
     time: float = 0.0
@@ -167,11 +168,13 @@ class Scene:
             robot.apply(tau if tau is not None else self._hold_torque(name, robot))
         for tool in self.tools.values():
             tool.step()
-        self.suture.pre_step()
+        if self.suture is not None:
+            self.suture.pre_step()
         if self.tissue is not None:
             self.tissue.pre_step()
         p.stepSimulation(physicsClientId=self.client)
-        self.suture.stepped()
+        if self.suture is not None:
+            self.suture.stepped()
         self.time += 1.0 / PHYSICS_RATE
 
     def _hold_torque(self, name: str, robot: Any) -> Any:
@@ -929,6 +932,9 @@ def pull_ends(
         What happened (forces from the grasp constraints, stretch from the chain).
     """
     dt = 1.0 / PHYSICS_RATE
+    suture = scene.suture
+    if suture is None:
+        raise SceneError("suture", None, ["a thread to pull"])
     xl = np.array(left.pose()[0])
     xr = np.array(right.pose()[0])
     left.close()
@@ -951,14 +957,14 @@ def pull_ends(
                     right.set_pose((xr[0], xr[1], xr[2]))
         else:
             hold_forces.append(force)
-            stretches.append(scene.suture.stretch())
+            stretches.append(suture.stretch())
             if t - reached_at >= hold:
                 break
         scene.step()
         t += dt
     if not hold_forces:
         force = 0.5 * (left.grip_force() + right.grip_force())
-        return PullResult(False, reached_at, force, force, force, scene.suture.stretch())
+        return PullResult(False, reached_at, force, force, force, suture.stretch())
     # The first steps of the hold still carry the pull's transient; judge the last 90 %.
     tail = hold_forces[len(hold_forces) // 10 :]
     settled = hold_forces[len(hold_forces) // 2 :]

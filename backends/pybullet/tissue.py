@@ -220,6 +220,21 @@ class Tissue:
             self.bodies.append(body)
         return self
 
+    def remove(self) -> None:
+        """Take the pad and its hold on the thread out of the world, and forget the thread
+        (an interrupted suture's cut: the next stitch gets a pad of its own). Call it
+        before the thread's bodies are removed."""
+        import pybullet as p
+
+        for cons in self._anchors.values():  # before the thread's bodies go
+            p.removeConstraint(cons, physicsClientId=self.client)
+        self._anchors.clear()
+        for body in self.bodies:
+            p.removeBody(body, physicsClientId=self.client)
+        self.bodies.clear()
+        self.suture = self._tracked = None
+        self._passing.clear()
+
     def thread(self, suture: Suture) -> None:
         """Declare that ``suture`` passes through the stitch channel (after the needle pass)."""
         self.suture = suture

@@ -722,6 +722,28 @@ class Grasper(Tool):
         p.changeDynamics(self.body, -1, lateralFriction=self.jaw_friction, physicsClientId=c)
         self._solid_for = held
 
+    def set_thread(self, suture: Suture | None) -> None:
+        """Take ``suture`` as the thread the jaws grasp and the hook catches (None: no
+        thread): the thread was cut and another loaded (an interrupted suture).
+
+        Whatever the jaws held of the old thread is let go (its grasp removed; the jaws
+        stay as commanded), and the jaws' and hook's contacts are set for the new one.
+        Call it before the old thread's bodies are removed.
+        """
+        import pybullet as p
+
+        if self._grasp >= 0:
+            p.removeConstraint(self._grasp, physicsClientId=self.client)
+            self._grasp = -1
+        self.held_segment = -1
+        self._lag = None
+        self.suture = suture
+        if self.solid:
+            self._solid_for = -2  # _solidify sets the new capsules' contacts
+            self._solidify()
+        if self.hook_body >= 0:
+            self._set_hook_collision(self._hook_on)
+
     # ---- flexible hook (Fig. 4.6) -------------------------------------------------------
 
     def _make_hook(self) -> None:
@@ -1265,6 +1287,50 @@ class Stitcher(Tool):
         self._carried = list(suture.bodies[max(n - spare - self.handover_carry, 0) : n - spare])
         self._in_jaw = list(suture.bodies[max(n - spare, 0) :])
         self._thread = list(suture.bodies)
+
+    def set_thread(self, suture: Suture | None) -> None:
+        """Take ``suture``'s needle into the jaw that holds the needle (``needle_holder``),
+        where it lies, and let the jaws touch the new thread (:meth:`collide_with`);
+        None: the jaw holds no needle. The old thread was cut (an interrupted suture): its
+        needle's lock and any hand-over under way end. Call it before the old thread's
+        bodies are removed.
+        """
+        import pybullet as p
+
+        c = self.client
+        if self._lock >= 0:
+            p.removeConstraint(self._lock, physicsClientId=c)
+            self._lock = -1
+        self._timer = -1.0
+        self._pending = False
+        self.stalled = False
+        self._let_through = {}
+        self._carried, self._in_jaw, self._thread = [], [], []
+        self.needle_body = -1
+        if suture is None:
+            return
+        self.needle_body = suture.needle_body
+        self.collide_with(suture)
+        for jaw in self.jaws:  # every other capsule touches the jaws (none let through)
+            for body in suture.bodies[: len(suture.bodies) - len(self._in_jaw)]:
+                p.setCollisionFilterPair(jaw, body, -1, -1, 1, physicsClientId=c)
+        if self.needle_body >= 0:
+            self._lock = self._attach(self.jaws[self.needle_holder], self.needle_body)
+
+    def needle_jaw(self) -> tuple[Vec3, Vec3]:
+        """Where a needle in the holding jaw has its swaged end, and the direction the
+        thread runs into that jaw (outwards from the gap towards it), world frame
+        ([m], unit vector)."""
+        import pybullet as p
+
+        pos, orn = self.pose()
+        at, _ = p.multiplyTransforms(
+            pos, orn, [float(v) for v in self._jaw_offset(self.needle_holder)], _IDENTITY
+        )
+        x = p.getMatrixFromQuaternion(orn)[0::3]
+        sign = 1.0 if self.needle_holder == 0 else -1.0
+        axis = (sign * x[0], sign * x[1], sign * x[2])
+        return (float(at[0]), float(at[1]), float(at[2])), axis
 
     def _let_thread_pass(self) -> None:
         """The capsules inside the jaw with the needle stop colliding with the rest of

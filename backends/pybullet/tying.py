@@ -217,6 +217,7 @@ def _throw(
             holder.set_pose((float(tail[0] - side * out), float(tail[1]), float(tail[2])))
             scene.step()
         here = goal
+    assert scene.suture is not None  # the jig's scene is never cut
     wrapped = scene.suture.centerline()
     if on_phase is not None:
         on_phase("wrapped", scene.client)

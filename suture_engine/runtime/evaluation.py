@@ -382,8 +382,15 @@ def evaluate(
     declared: Mapping[str, Sequence[float]] | None = None,
     contact_diameter: float | None = None,
     wound: tuple[ArrayLike, ArrayLike] | None = None,
+    cut: Sequence[ArrayLike] = (),
 ) -> TraceEvaluation:
     """Knots and metrics from a final centerline and tension series (see the module).
+
+    With ``cut`` threads (an interrupted suture's, one per stitch) every thread is
+    evaluated on its own and ``knot`` is a list with one entry per thread's knot, in
+    their order along the wound: ``stitch`` (1, 2, ... along the wound), ``thread`` (1 for
+    the first thread loaded, ...) and ``cut`` (whether the thread was cut); the stitch
+    metrics take the bites of all threads, in that order.
 
     Args:
         centerline: N x 3 ground-truth centerline [m] (None: no thread).
@@ -394,17 +401,53 @@ def evaluate(
         declared: the scene's named tissue points [m].
         contact_diameter: the simulated thread's contact diameter [m].
         wound: the wound line's ends [m]; bites must cross it (see :func:`find_bites`).
+        cut: the centerlines of the threads cut before the last one [m], in the order
+            they were cut.
     """
     metrics: dict[str, Any] = dict(tension_metrics(estimated, true))
-    if centerline is None:
+    threads = [_points(c) for c in cut]
+    if centerline is not None:
+        threads.append(_points(centerline))
+    if not threads:
         metrics["stitches"] = None
         return TraceEvaluation(None, metrics)
-    pts = _points(centerline)
-    bites = find_bites(pts, tissue_point, tissue_normal, wound=wound)
-    metrics["stitches"] = stitch_metrics(bites, declared)
-    entries = knot_entries(pts, tissue_point, tissue_normal, contact_diameter, bites)
-    knot: dict[str, Any] | list[dict[str, Any]] = entries[0] if len(entries) == 1 else entries
-    return TraceEvaluation(knot, metrics)
+    if len(threads) == 1:
+        pts = threads[0]
+        bites = find_bites(pts, tissue_point, tissue_normal, wound=wound)
+        metrics["stitches"] = stitch_metrics(bites, declared)
+        entries = knot_entries(pts, tissue_point, tissue_normal, contact_diameter, bites)
+        knot: dict[str, Any] | list[dict[str, Any]] = entries[0] if len(entries) == 1 else entries
+        return TraceEvaluation(knot, metrics)
+    # An interrupted suture: one thread per stitch, each evaluated on its own, in their
+    # order along the wound (the order they were loaded in is ``thread``).
+    found = []
+    for order, pts in enumerate(threads):
+        bites = find_bites(pts, tissue_point, tissue_normal, wound=wound)
+        found.append((_along_wound(bites, wound), order, pts, bites))
+    found.sort(key=lambda item: (item[0], item[1]))
+    all_bites = [b for _, _, _, bites in found for b in bites]
+    metrics["stitches"] = stitch_metrics(all_bites, declared)
+    entries = []
+    for _, order, pts, bites in found:
+        for entry in knot_entries(pts, tissue_point, tissue_normal, contact_diameter, bites):
+            entry["stitch"] = len(entries) + 1
+            entry["thread"] = order + 1
+            entry["cut"] = order < len(cut)
+            entries.append(entry)
+    return TraceEvaluation(entries, metrics)
+
+
+def _along_wound(bites: Sequence[Bite], wound: tuple[ArrayLike, ArrayLike] | None) -> float:
+    """Where a thread's bites lie along the wound [m] (their centres' mean, projected on
+    the wound line from its start); +inf without a bite, 0 without a wound."""
+    if not bites:
+        return math.inf
+    if wound is None:
+        return 0.0
+    a, b = np.asarray(wound[0], dtype=float), np.asarray(wound[1], dtype=float)
+    along = (b - a) / max(float(np.linalg.norm(b - a)), 1e-12)
+    centres = [0.5 * (np.asarray(x.entry) + np.asarray(x.exit)) for x in bites]
+    return float(np.mean([(c - a) @ along for c in centres]))
 
 
 def evaluate_trace(
@@ -416,7 +459,8 @@ def evaluate_trace(
     wound: tuple[ArrayLike, ArrayLike] | None = None,
 ) -> TraceEvaluation:
     """Evaluate a recorded trace: its last ``/ground_truth/suture`` centerline, its
-    ``/ground_truth/tension`` and ``/tension/estimated`` series.
+    ``/ground_truth/tension`` and ``/tension/estimated`` series, and the cut threads'
+    centerlines on ``/ground_truth/suture_cut``.
 
     Args:
         path: the trace file.
@@ -433,13 +477,19 @@ def evaluate_trace(
     from suture_engine.trace.reader import TraceReader
 
     topics = [channels.GROUND_TRUTH_SUTURE, channels.GROUND_TRUTH_TENSION]
-    topics.append(channels.TENSION_ESTIMATED)
+    topics += [channels.TENSION_ESTIMATED, channels.GROUND_TRUTH_SUTURE_CUT]
     centerline: FloatArray | None = None
+    cut: list[FloatArray] = []
     estimated: list[float] = []
     true: list[float] = []
     for msg in TraceReader(path).messages(topics):
         if msg.topic == channels.GROUND_TRUTH_SUTURE:
             centerline = _centerline(msg.data) if msg.data else centerline
+        elif msg.topic == channels.GROUND_TRUTH_SUTURE_CUT:
+            line = _centerline(msg.data) if msg.data else None
+            if line is not None:
+                cut.append(line)
+            centerline = None  # the thread after the cut is the next one
         elif msg.topic == channels.GROUND_TRUTH_TENSION:
             true.append(float(msg.data["tension_N"]))
         else:
@@ -453,4 +503,5 @@ def evaluate_trace(
         declared,
         contact_diameter,
         wound,
+        cut,
     )

@@ -26,6 +26,7 @@ Ground truth from the backend goes to the trace only.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 import time
 from collections.abc import Callable, Mapping
@@ -426,6 +427,11 @@ class Interpreter:
             records = a.unpredictable(f"skill-failure:{type(exc).__name__}: {exc}")
             self._record_transitions(time_ns, records)
             return None
+        if getattr(a.active_skill, "scene_request", None) is not None:
+            failure = self._scene_request(time_ns, a.active_skill)
+            if failure is not None:
+                self._record_transitions(time_ns, a.unpredictable(f"skill-failure:{failure}"))
+                return None
         self._qp_tick(time_ns, a.active_skill, spec)
         violation = self.monitor.check(
             spec.invariant,
@@ -450,6 +456,31 @@ class Interpreter:
             self._apply_registration(a.active_skill)
             self._record_transitions(time_ns, a.planned())
         return result.command
+
+    def _scene_request(self, time_ns: int, skill: Any) -> str | None:
+        """Carry out a skill's request to change the world (``cut-suture``,
+        ``load-suture``: :class:`skills.reload.SutureChange`) on the backend.
+
+        A cut thread's last centerline goes to the trace (``/ground_truth/suture_cut``);
+        each change is an event. Returns why it failed (the backend cannot, or refused),
+        or None."""
+        action, kwargs = skill.scene_request
+        skill.scene_request = None
+        method = getattr(self.backend, action, None)
+        name = getattr(self.backend, "name", type(self.backend).__name__)
+        if method is None:
+            return f"the backend {name} cannot {action.replace('_', ' ')}"
+        try:
+            result = method(**kwargs)
+        except SutureError as exc:
+            return str(exc)
+        state = self.automaton.state
+        detail = json.dumps(kwargs, sort_keys=True, separators=(",", ":"))
+        self.recorder.event(time_ns, action.replace("_", "-"), "backend", state, detail)
+        centerline = getattr(result, "centerline", None)
+        if centerline is not None:
+            self.recorder.suture_cut(time_ns, centerline)
+        return None
 
     def _apply_registration(self, skill: Any) -> None:
         """Add a finishing skill's base corrections (``register``) to the declared bases."""
@@ -608,7 +639,10 @@ class Interpreter:
         final = max(self._tension.values()) if self._tension else None
         estimated = [self.monitor.max_tension_N] + ([final] if final is not None else [])
         try:
-            return evaluate(centerline, estimated, true, point, normal, declared, diameter, wound)
+            cut = truth.get("cut_centerlines") or ()
+            return evaluate(
+                centerline, estimated, true, point, normal, declared, diameter, wound, cut
+            )
         except (SutureError, ValueError) as exc:  # e.g. a degenerate centerline
             from suture_engine.runtime.evaluation import TraceEvaluation, tension_metrics
 

@@ -8,7 +8,8 @@ them, ``/ground_truth/tension`` (every tick) and ``/ground_truth/suture``
 bent-tip grasper's universal joint, on the ticks it changes: never while it stays
 straight, so the traces of runs without a bend are unchanged), ``/hook_load/<robot>``
 (the flexible hook's actuator load, likewise on the ticks it changes). On events:
-``/transitions``, ``/events``, ``/operator``. Time is simulation time: tick * period [ns].
+``/transitions``, ``/events``, ``/operator``, ``/ground_truth/suture_cut`` (a cut
+thread's last centerline, :mod:`skills.reload`). Time is simulation time: tick * period [ns].
 """
 
 from __future__ import annotations
@@ -78,6 +79,9 @@ class Recorder:
 
     def qp(self, time_ns: int, robot: str, result: Any) -> None:
         """Record one QP solve's status (a ``constrained_qp.QPResult``)."""
+
+    def suture_cut(self, time_ns: int, centerline: Any) -> None:
+        """Record a cut thread's last centerline [m] (N x 3; ground truth)."""
 
     def close(self) -> None:
         """Finish the trace."""
@@ -372,6 +376,12 @@ class TraceRecorder(Recorder):
         if robot is not None:
             msg["robot"] = robot
         self.writer.write(self._ch.EVENTS, time_ns, msg)
+
+    def suture_cut(self, time_ns: int, centerline: Any) -> None:
+        """Record a cut thread's last centerline on ``/ground_truth/suture_cut``."""
+        self._drain()
+        pts = [_floats(p) for p in centerline]
+        self.writer.write(self._ch.GROUND_TRUTH_SUTURE_CUT, time_ns, {"centerline": pts})
 
     def qp(self, time_ns: int, robot: str, result: Any) -> None:
         """Record one QP solve on ``/qp/<robot>`` (the wall-clock solve time is dropped).

@@ -63,6 +63,7 @@ __all__ = [
     "EVENTS",
     "GROUND_TRUTH_KNOT",
     "GROUND_TRUTH_SUTURE",
+    "GROUND_TRUTH_SUTURE_CUT",
     "GROUND_TRUTH_TENSION",
     "META",
     "OPERATOR",
@@ -90,6 +91,7 @@ TRANSITIONS = "/transitions"
 OPERATOR = "/operator"
 TENSION_ESTIMATED = "/tension/estimated"
 GROUND_TRUTH_SUTURE = "/ground_truth/suture"
+GROUND_TRUTH_SUTURE_CUT = "/ground_truth/suture_cut"
 GROUND_TRUTH_TENSION = "/ground_truth/tension"
 GROUND_TRUTH_KNOT = "/ground_truth/knot"
 
@@ -399,6 +401,24 @@ CATALOGUE: tuple[ChannelSpec, ...] = (
         ),
         "The simulator's suture centerline, at a lower rate. Evaluation only. Writers may "
         "pass ``{'centerline': [[x, y, z], ...]}``: it is stored as coordinate arrays.",
+        ground_truth=True,
+        adapt=_centerline_columns,
+    ),
+    ChannelSpec(
+        GROUND_TRUTH_SUTURE_CUT,
+        "suture_engine.SutureCenterline",
+        _obj(
+            "A cut suture's last centerline (ground truth)",
+            {
+                "x": _vec("x of the centerline points [m], world frame"),
+                "y": _vec("y of the centerline points [m], world frame"),
+                "z": _vec("z of the centerline points [m], world frame"),
+            },
+            ["x", "y", "z"],
+        ),
+        "The centerline of a suture when it was cut (an interrupted suture's tied stitch, "
+        "``cut-suture``), once per cut. Evaluation only. Written like "
+        "``/ground_truth/suture``.",
         ground_truth=True,
         adapt=_centerline_columns,
     ),

@@ -1,0 +1,179 @@
+"""Cut the tied thread, and load the next stitch's: an interrupted suture, one stitch at a time.
+
+In an interrupted suture each stitch has its own suture: it is stitched, tied, and its
+ends are cut; then a new suture is loaded for the next stitch. The simulated world does
+the same in two operations that a procedure asks for between its knots:
+
+- :func:`cut_thread` takes the scene's thread out of the world (its knot stays in the
+  tissue; the simulation keeps its last centerline for evaluation and drops its bodies),
+  with the tissue pad that held it. Whatever the tools held of it is let go; the
+  stitcher's jaw holds no needle afterwards.
+- :func:`load_thread` adds a new thread and pad for the stitch at the named entry and exit
+  points, in the backend's start state: ``"stitched"`` (the stitch made, as the stitched
+  start lays it, the needle in the stitcher's holding jaw wherever the stitcher now is) or
+  ``"needle"`` (the thread hangs from the needle in that jaw).
+
+What this leaves out, stated: the cut knots are not obstacles for the next stitch (their
+short cut tails would be), and the wound edges are not pulled together by them.
+"""
+
+from __future__ import annotations
+
+from typing import Any, NamedTuple
+
+import numpy as np
+from numpy.typing import NDArray
+
+from backends.pybullet.scene import (
+    PAD_SIZE,
+    Scene,
+    SceneError,
+    channel_depth,
+    stitch_points,
+    stitched_path,
+    suture_params,
+)
+from backends.pybullet.suture import Suture
+from backends.pybullet.tissue import Tissue
+from backends.pybullet.tools import Grasper, Stitcher
+
+__all__ = ["RELOAD_STARTS", "CutThread", "cut_thread", "load_thread"]
+
+RELOAD_STARTS = ("stitched", "needle")
+"""The start states a loaded thread can take (a held tail needs the assistant there)."""
+
+
+class CutThread(NamedTuple):
+    """A thread taken out of the world by :func:`cut_thread` (ground truth).
+
+    Attributes:
+        centerline: its centerline when cut, tail to needle, world frame [m] (N x 3).
+        time: simulated time of the cut [s].
+    """
+
+    centerline: NDArray[np.float64]
+    time: float
+
+
+def cut_thread(scene: Scene) -> CutThread:
+    """Cut the scene's thread and take it, and its tissue pad, out of the world.
+
+    Raises:
+        SceneError: the scene has no thread to cut.
+    """
+    suture = scene.suture
+    if suture is None:
+        raise SceneError("suture", None, ["a thread in the world (cut once per load)"])
+    cut = CutThread(np.array(suture.centerline(), dtype=float), float(scene.time))
+    if scene.tissue is not None:
+        scene.tissue.remove()
+        scene.tissue = None
+    for tool in scene.tools.values():
+        if isinstance(tool, (Grasper, Stitcher)):
+            tool.set_thread(None)
+    suture.remove()
+    scene.suture = None
+    return cut
+
+
+def load_thread(
+    scene: Scene,
+    model: Any,
+    entry: str,
+    exit_: str,
+    start: str,
+    tail: float,
+    bending_stiffness: float = 0.0,
+) -> Suture:
+    """Load a new thread for the stitch from ``entry`` to ``exit_`` (tissue point names).
+
+    Args:
+        scene: the built scene, its thread cut (:func:`cut_thread`).
+        model: the scene model it was built from (robots, tissue, suture).
+        entry: the new stitch's entry point's name.
+        exit_: its exit point's name.
+        start: ``"stitched"`` or ``"needle"`` (:data:`RELOAD_STARTS`).
+        tail: the stitched thread's tail out of the entry point [m].
+        bending_stiffness: the thread's flexural rigidity EI [N*m^2].
+
+    Returns:
+        The new thread (also ``scene.suture``).
+
+    Raises:
+        SceneError: a thread is still in the world, an unknown start or point name, no
+            stitcher to hold the needle, a bent-tip grasper in the scene, or a thread
+            too short to reach the jaw.
+    """
+    import pybullet as p
+
+    if scene.suture is not None:
+        raise SceneError("suture", "loaded", ["cut the thread first"])
+    if start not in RELOAD_STARTS:
+        raise SceneError("start", start, list(RELOAD_STARTS))
+    stitchers = [t for t in scene.tools.values() if isinstance(t, Stitcher)]
+    if not stitchers:
+        raise SceneError("robots", sorted(scene.tools), ["a stitcher to hold the needle"])
+    if any(type(t).__name__ == "BentTipGrasper" for t in scene.tools.values()):
+        raise SceneError(
+            "robots",
+            "bent-tip-grasper",
+            ["hook-grasper or grasper (a reload does not rebuild the bent tip's thread filters)"],
+        )
+    stitcher = stitchers[0]
+    a, b = stitch_points(model.tissue, (entry, exit_))
+    client = scene.client
+    normal = np.asarray(model.tissue.normal, float)
+    normal = normal / np.linalg.norm(normal)
+    tissue = Tissue.create(
+        client,
+        center=tuple((np.asarray(model.tissue.wound.start) + model.tissue.wound.end) / 2),
+        entry=tuple(a),
+        exit=tuple(b),
+        normal=tuple(normal),
+        depth=channel_depth(float(np.linalg.norm(b - a))),
+        size=PAD_SIZE,
+    )
+    params = suture_params(model, bending_stiffness)
+    jaw, axis = stitcher.needle_jaw()
+    lift = params.collision_radius + 0.5e-3
+    if start == "stitched":
+        path = stitched_path(
+            tissue.channel,
+            normal,
+            lift,
+            tail,
+            np.asarray(jaw, float),
+            np.asarray(axis, float),
+            params.length,
+            params.segment_length,
+        )
+    else:  # the thread hangs from the needle, away from the jaw, as the needle start's
+        tip = np.asarray(jaw, float)
+        back = np.cross(normal, b - a)
+        back = back / np.linalg.norm(back)
+        path = np.vstack([tip + back * params.length, tip])
+    try:
+        suture = Suture.create(client, path, params)
+    except BaseException:
+        tissue.remove()
+        raise
+    if start == "stitched":
+        tissue.thread(suture)
+    tissue.track(suture)
+    for robot in scene.robots.values():
+        for link in range(-1, p.getNumJoints(robot.body_id, physicsClientId=client)):
+            for body in [*tissue.bodies, suture.needle_body]:
+                p.setCollisionFilterPair(robot.body_id, body, link, -1, 0, physicsClientId=client)
+    for tool in scene.tools.values():
+        for part in (b for b in tool._parts() if b >= 0):
+            for body in tissue.bodies:
+                p.setCollisionFilterPair(part, body, -1, -1, 0, physicsClientId=client)
+    for post in scene.posts.values():
+        for body in [*tissue.bodies, *suture.bodies, suture.needle_body]:
+            p.setCollisionFilterPair(post, body, -1, -1, 0, physicsClientId=client)
+    scene.suture = suture
+    scene.tissue = tissue
+    for tool in scene.tools.values():
+        if isinstance(tool, (Grasper, Stitcher)):
+            tool.set_thread(suture)
+    return suture

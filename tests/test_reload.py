@@ -1,0 +1,194 @@
+"""Cutting a suture and loading the next stitch's (an interrupted suture, one at a time):
+in the backend (``cut_suture``, ``load_suture``), through the skills ``cut-suture`` and
+``load-suture`` in a run, and the evaluation of the threads cut on the way."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from backends.base import BackendError
+from backends.pybullet.backend import StitchedSurgicalPyBulletBackend, SurgicalPyBulletBackend
+from backends.pybullet.tools import Grasper, Stitcher
+from suture_engine.language.loader import load_procedure
+from suture_engine.robot.endobot import gravity_vector
+from suture_engine.runtime.evaluation import evaluate_trace, find_bites
+from suture_engine.runtime.observation import Command, RobotCommand, ToolCommand
+from suture_engine.runtime.run import run_procedure
+
+ROOT = Path(__file__).resolve().parent.parent
+SQUARE = ROOT / "procedures" / "square-knot.yaml"
+RELOAD = ROOT / "tests" / "procedures" / "reload-stitch.yaml"
+MM = 1e-3
+
+
+@pytest.fixture(scope="module")
+def model():  # type: ignore[no-untyped-def]
+    return load_procedure(SQUARE).scene  # bench-square: 140 mm thread, hook grasper
+
+
+def _hold(be: StitchedSurgicalPyBulletBackend, ticks: int, tools=None) -> None:  # type: ignore[no-untyped-def]
+    for _ in range(ticks):
+        obs = be.observe()
+        be.apply(
+            Command(
+                {
+                    k: RobotCommand.torque(
+                        gravity_vector(np.asarray(obs.robots[k].q), s.model_params),
+                        (tools or {}).get(k),
+                    )
+                    for k, s in be.robots.items()
+                }
+            )
+        )
+        be.step()
+
+
+def _site(model, k: int) -> tuple[np.ndarray, np.ndarray]:  # type: ignore[no-untyped-def]
+    pts = model.tissue.points
+    return np.asarray(pts[f"entry_{k}"], float), np.asarray(pts[f"exit_{k}"], float)
+
+
+def test_a_cut_thread_leaves_the_world_and_a_loaded_one_is_stitched_at_its_site(model) -> None:  # type: ignore[no-untyped-def]
+    be = StitchedSurgicalPyBulletBackend()
+    try:
+        be.reset(model, 0)
+        assert be.scene is not None
+        grasper, stitcher = be.scene.tools["endobot_2"], be.scene.tools["endobot_1"]
+        assert isinstance(grasper, Grasper) and isinstance(stitcher, Stitcher)
+        _hold(be, 50)
+        import pybullet as p
+
+        old_bodies = list(be.scene.suture.bodies)
+        count = p.getNumBodies(physicsClientId=be.client)
+        before = np.asarray(be.ground_truth()["centerline"])
+        cut = be.cut_suture()
+        np.testing.assert_allclose(cut.centerline, before, atol=1e-4)
+        assert be.scene.suture is None and be.scene.tissue is None
+        assert not stitcher.holds_needle and grasper.suture is None
+        # the capsules, the needle and the pad's two halves are gone
+        assert p.getNumBodies(physicsClientId=be.client) == count - len(old_bodies) - 3
+        truth = be.ground_truth()
+        assert "centerline" not in truth and "tension_N" not in truth
+        assert len(truth["cut_centerlines"]) == 1
+        _hold(be, 100)  # the world steps without a thread
+        with pytest.raises(BackendError, match="cut once per load"):
+            be.cut_suture()
+        be.load_suture("entry_1", "exit_1")
+        _hold(be, 500)
+        suture = be.scene.suture
+        assert suture is not None and len(suture.bodies) == len(old_bodies)
+        line = np.asarray(be.ground_truth()["centerline"])
+        bites = find_bites(line, (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+        entry, exit_ = _site(model, 1)
+        assert len(bites) == 1
+        assert np.linalg.norm(np.asarray(bites[0].entry) - entry) < 0.5 * MM
+        assert np.linalg.norm(np.asarray(bites[0].exit) - exit_) < 0.5 * MM
+        # the needle is locked in the jaw that held the old one, the thread at rest in it
+        assert stitcher.holds_needle and stitcher.needle_body == suture.needle_body
+        jaw, _ = stitcher.needle_jaw()
+        assert np.linalg.norm(line[-1] - np.asarray(jaw)) < 1.5 * MM
+        assert be.ground_truth()["tension_N"] < 0.1
+        speeds = [
+            np.linalg.norm(p.getBaseVelocity(b, physicsClientId=be.client)[0])
+            for b in suture.bodies
+        ]
+        assert max(speeds) < 0.01
+    finally:
+        be.close()
+
+
+def test_the_stitcher_hands_the_loaded_needle_over(model) -> None:  # type: ignore[no-untyped-def]
+    be = StitchedSurgicalPyBulletBackend()
+    try:
+        be.reset(model, 0)
+        be.cut_suture()
+        be.load_suture("entry_3", "exit_3")
+        stitcher = be.scene.tools["endobot_1"]
+        _hold(be, 200, {"endobot_1": ToolCommand(jaw_closed=True, jaw2_closed=False)})
+        _hold(be, 400, {"endobot_1": ToolCommand(jaw_closed=True, jaw2_closed=True)})
+        assert stitcher.needle_holder == 1 and not stitcher.stalls
+    finally:
+        be.close()
+
+
+def test_bad_loads_are_refused_with_their_reason(model) -> None:  # type: ignore[no-untyped-def]
+    be = StitchedSurgicalPyBulletBackend()
+    try:
+        be.reset(model, 0)
+        with pytest.raises(BackendError, match="cut the thread first"):
+            be.load_suture("entry_1", "exit_1")
+        be.cut_suture()
+        with pytest.raises(BackendError, match="entry_9"):
+            be.load_suture("entry_9", "exit_1")
+        assert be.scene.suture is None and be.scene.tissue is None  # nothing half-built
+    finally:
+        be.close()
+    tail_held = SurgicalPyBulletBackend(start="tail-held")
+    try:
+        tail_held.reset(model, 0)
+        tail_held.cut_suture()
+        with pytest.raises(BackendError, match="tail-held"):
+            tail_held.load_suture("entry_1", "exit_1")
+    finally:
+        tail_held.close()
+
+
+def test_on_the_needle_start_the_loaded_thread_hangs_from_the_needle(model) -> None:  # type: ignore[no-untyped-def]
+    be = SurgicalPyBulletBackend(start="needle")
+    try:
+        be.reset(model, 0)
+        be.cut_suture()
+        be.load_suture("entry_1", "exit_1")
+        _hold(be, 300)
+        stitcher = be.scene.tools["endobot_1"]
+        line = np.asarray(be.ground_truth()["centerline"])
+        assert stitcher.holds_needle
+        assert np.linalg.norm(line[-1] - np.asarray(stitcher.needle_jaw()[0])) < 1.5 * MM
+        # not stitched: no bite, and the pad is not threaded
+        assert find_bites(line, (0.0, 0.0, 0.0), (0.0, 0.0, 1.0)) == []
+        assert be.scene.tissue.suture is None
+    finally:
+        be.close()
+
+
+def test_a_run_cuts_and_loads_and_evaluates_both_stitches(tmp_path: Path) -> None:
+    summary = run_procedure(RELOAD, out=tmp_path, seed=0, max_time_s=60.0).summary
+    assert summary.outcome == "succeeded", summary.metrics.get("stopped")
+    knots = summary.knot
+    assert isinstance(knots, list) and len(knots) == 2
+    # along the wound: stitch 1 (x = -5 mm), loaded second; stitch 2, cut
+    assert [(k["stitch"], k["thread"], k["cut"]) for k in knots] == [(1, 2, False), (2, 1, True)]
+    assert all(k["type"] == "unknot" and k["through_tissue"] for k in knots)
+    stitches = summary.metrics["stitches"]
+    assert stitches["site"] == ["1", "2"]
+    assert stitches["spacing_mean_mm"] == pytest.approx(5.0, abs=0.5)
+    assert max(stitches["entry_error_mm"] + stitches["exit_error_mm"]) < 0.5
+    # the trace has the cut, and evaluating it gives what the summary says
+    from suture_engine.trace import channels
+    from suture_engine.trace.reader import TraceReader
+
+    trace = tmp_path / "trace.mcap"
+    cuts = list(TraceReader(trace).messages([channels.GROUND_TRUTH_SUTURE_CUT]))
+    assert len(cuts) == 1
+    events = [m.data["name"] for m in TraceReader(trace).messages([channels.EVENTS])]
+    assert "cut-suture" in events and "load-suture" in events
+    ev = evaluate_trace(
+        trace, (0.0, 0.0, 0.0), (0.0, 0.0, 1.0), wound=((-0.015, 0, 0), (0.015, 0, 0))
+    )
+    assert isinstance(ev.knot, list)
+    assert [(k["stitch"], k["thread"], k["cut"]) for k in ev.knot] == [(1, 2, False), (2, 1, True)]
+    saved = json.loads((tmp_path / "summary.json").read_text())
+    assert [k["cut"] for k in saved["knot"]] == [False, True]
+
+
+def test_a_backend_without_threads_fails_the_cut_step(tmp_path: Path) -> None:
+    result = run_procedure(RELOAD, out=tmp_path, seed=0, max_time_s=30.0, backend="pybullet")
+    summary = result.summary
+    assert summary.outcome == "failed"
+    assert summary.last_fault is not None
+    assert summary.last_fault["step"] == "cut-2"
+    assert "no surgical scene" in summary.last_fault["reason"]
