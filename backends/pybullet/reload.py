@@ -4,9 +4,11 @@ In an interrupted suture each stitch has its own suture: it is stitched, tied, a
 ends are cut; then a new suture is loaded for the next stitch. The simulated world does
 the same in two operations that a procedure asks for between its knots:
 
-- :func:`cut_thread` takes the scene's thread out of the world (its knot stays in the
-  tissue; the simulation keeps its last centerline for evaluation and drops its bodies),
-  with the tissue pad that held it. Whatever the tools held of it is let go; the
+- :func:`cut_thread` takes the scene's thread out of play (its knot stays in the tissue;
+  the simulation keeps its last centerline for evaluation and parks its bodies far
+  away, static and touching nothing: PyBullet would give a removed body's id, and the
+  collision filter pairs set on it, to the next new body), with the tissue pad that
+  held it. Whatever the tools held of it is let go; the
   stitcher's jaw holds no needle afterwards.
 - :func:`load_thread` adds a new thread and pad for the stitch at the named entry and exit
   points, in the backend's start state: ``"stitched"`` (the stitch made, as the stitched
@@ -42,6 +44,9 @@ __all__ = ["RELOAD_STARTS", "CutThread", "cut_thread", "load_thread"]
 RELOAD_STARTS = ("stitched", "needle")
 """The start states a loaded thread can take (a held tail needs the assistant there)."""
 
+PARK_DISTANCE = 50.0
+"""How far from the scene a cut thread and its pad are parked [m] (:meth:`Suture.park`)."""
+
 
 class CutThread(NamedTuple):
     """A thread taken out of the world by :func:`cut_thread` (ground truth).
@@ -56,7 +61,7 @@ class CutThread(NamedTuple):
 
 
 def cut_thread(scene: Scene) -> CutThread:
-    """Cut the scene's thread and take it, and its tissue pad, out of the world.
+    """Cut the scene's thread and take it, and its tissue pad, out of play (parked).
 
     Raises:
         SceneError: the scene has no thread to cut.
@@ -65,13 +70,15 @@ def cut_thread(scene: Scene) -> CutThread:
     if suture is None:
         raise SceneError("suture", None, ["a thread in the world (cut once per load)"])
     cut = CutThread(np.array(suture.centerline(), dtype=float), float(scene.time))
+    scene.cuts += 1
+    away = (PARK_DISTANCE * scene.cuts, PARK_DISTANCE, -PARK_DISTANCE)
     if scene.tissue is not None:
-        scene.tissue.remove()
+        scene.tissue.park((away[0], away[1] + 2.0, away[2]))
         scene.tissue = None
     for tool in scene.tools.values():
         if isinstance(tool, (Grasper, Stitcher)):
             tool.set_thread(None)
-    suture.remove()
+    suture.park(away)
     scene.suture = None
     return cut
 

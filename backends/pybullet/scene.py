@@ -154,6 +154,8 @@ class Scene:
     hold: dict[str, tuple[float, float, float, float]] = field(default_factory=dict)
     torques: dict[str, Any] = field(default_factory=dict)
     posts: dict[str, int] = field(default_factory=dict)
+    cuts: int = 0
+    """How many threads have been cut (:mod:`backends.pybullet.reload`)."""
 
     def step(self) -> None:
         """Advance the world by one physics step (1 / ``PHYSICS_RATE`` [s]).

@@ -36,6 +36,7 @@ it.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any, NamedTuple
 
@@ -667,6 +668,33 @@ class Suture:
             m = np.mean(np.array(selfs), axis=0)
             knot = (float(m[0]), float(m[1]), float(m[2]))
         return SutureGroundTruth(self.centerline(), self.tensions(), self.stretch(), knot, contacts)
+
+    def park(self, at: Sequence[float]) -> None:
+        """Take the thread out of play without removing its bodies: its joints and the
+        needle's swage go, and every capsule and the needle become static and touch
+        nothing (no collision group or mask), moved to ``at`` [m] far from the scene.
+
+        PyBullet gives a removed body's id to the next new body, and a collision filter
+        pair set on the old body then applied to the new one (a reloaded thread's tail
+        fell through a new tissue pad whose id had been the old needle's). Parked, the
+        bodies keep their ids, so no new body inherits their pairs.
+        """
+        import pybullet as p
+
+        c = self.client
+        for cons in [*self.links, self._needle_link]:
+            if cons >= 0:
+                p.removeConstraint(cons, physicsClientId=c)
+        for i, body in enumerate(b for b in [*self.bodies, self.needle_body] if b >= 0):
+            p.changeDynamics(body, -1, mass=0.0, physicsClientId=c)
+            p.setCollisionFilterGroupMask(body, -1, 0, 0, physicsClientId=c)
+            where = [float(at[0]) + 0.01 * i, float(at[1]), float(at[2])]
+            p.resetBasePositionAndOrientation(body, where, [0, 0, 0, 1], physicsClientId=c)
+        self.bodies.clear()
+        self.links.clear()
+        self.needle_body = self._needle_link = -1
+        self._settled = False
+        self._frame = self._step_poses = None
 
     def remove(self) -> None:
         """Remove the thread's bodies and constraints from the world."""

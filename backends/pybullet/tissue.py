@@ -37,6 +37,7 @@ Call :meth:`Tissue.pre_step` before every physics step.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any
 
@@ -220,17 +221,22 @@ class Tissue:
             self.bodies.append(body)
         return self
 
-    def remove(self) -> None:
-        """Take the pad and its hold on the thread out of the world, and forget the thread
-        (an interrupted suture's cut: the next stitch gets a pad of its own). Call it
-        before the thread's bodies are removed."""
+    def park(self, at: Sequence[float]) -> None:
+        """Take the pad and its hold on the thread out of play, and forget the thread (an
+        interrupted suture's cut: the next stitch gets a pad of its own). The hold's
+        constraints go; the pad's bodies stay (see :meth:`Suture.park` for why), moved to
+        ``at`` [m] far from the scene and touching nothing. Call it before the thread is
+        parked."""
         import pybullet as p
 
-        for cons in self._anchors.values():  # before the thread's bodies go
-            p.removeConstraint(cons, physicsClientId=self.client)
+        c = self.client
+        for cons in self._anchors.values():
+            p.removeConstraint(cons, physicsClientId=c)
         self._anchors.clear()
-        for body in self.bodies:
-            p.removeBody(body, physicsClientId=self.client)
+        for i, body in enumerate(self.bodies):
+            p.setCollisionFilterGroupMask(body, -1, 0, 0, physicsClientId=c)
+            where = [float(at[0]) + 0.5 * i, float(at[1]), float(at[2])]
+            p.resetBasePositionAndOrientation(body, where, [0, 0, 0, 1], physicsClientId=c)
         self.bodies.clear()
         self.suture = self._tracked = None
         self._passing.clear()

@@ -1311,9 +1311,6 @@ class Stitcher(Tool):
             return
         self.needle_body = suture.needle_body
         self.collide_with(suture)
-        for jaw in self.jaws:  # every other capsule touches the jaws (none let through)
-            for body in suture.bodies[: len(suture.bodies) - len(self._in_jaw)]:
-                p.setCollisionFilterPair(jaw, body, -1, -1, 1, physicsClientId=c)
         if self.needle_body >= 0:
             self._lock = self._attach(self.jaws[self.needle_holder], self.needle_body)
 
