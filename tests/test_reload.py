@@ -135,6 +135,40 @@ def test_bad_loads_are_refused_with_their_reason(model) -> None:  # type: ignore
         assert be.scene.suture is None and be.scene.tissue is None  # nothing half-built
     finally:
         be.close()
+
+
+def test_a_load_that_fails_half_way_leaves_no_pad_in_the_scene(model, monkeypatch) -> None:  # type: ignore[no-untyped-def]
+    import pybullet as p
+
+    from backends.pybullet import reload
+    from backends.pybullet.scene import SceneError
+
+    def too_short(*args, **kwargs):  # type: ignore[no-untyped-def]
+        raise SceneError("tail", 0.2, ["<= 0.1 m"])
+
+    be = StitchedSurgicalPyBulletBackend()
+    try:
+        be.reset(model, 0)
+        be.cut_suture()
+        monkeypatch.setattr(reload, "stitched_path", too_short)
+        with pytest.raises(BackendError, match="tail"):
+            be.load_suture("entry_1", "exit_1")
+        assert be.scene.suture is None and be.scene.tissue is None
+        # the new pad was built, then parked: nothing but the robots' parts near the wound
+        near = [
+            i
+            for i in range(p.getNumBodies(physicsClientId=be.client))
+            if np.linalg.norm(p.getBasePositionAndOrientation(i, physicsClientId=be.client)[0])
+            < 1.0
+            and p.getDynamicsInfo(i, -1, physicsClientId=be.client)[0] == 0.0
+            and i not in {r.body_id for r in be.robots.values()}
+        ]
+        assert near == []
+        monkeypatch.undo()
+        be.load_suture("entry_1", "exit_1")  # and a load after it works
+        assert be.scene.suture is not None
+    finally:
+        be.close()
     tail_held = SurgicalPyBulletBackend(start="tail-held")
     try:
         tail_held.reset(model, 0)

@@ -143,26 +143,27 @@ def load_thread(
     params = suture_params(model, bending_stiffness)
     jaw, axis = stitcher.needle_jaw()
     lift = params.collision_radius + 0.5e-3
-    if start == "stitched":
-        path = stitched_path(
-            tissue.channel,
-            normal,
-            lift,
-            tail,
-            np.asarray(jaw, float),
-            np.asarray(axis, float),
-            params.length,
-            params.segment_length,
-        )
-    else:  # the thread hangs from the needle, away from the jaw, as the needle start's
-        tip = np.asarray(jaw, float)
-        back = np.cross(normal, b - a)
-        back = back / np.linalg.norm(back)
-        path = np.vstack([tip + back * params.length, tip])
     try:
+        if start == "stitched":
+            path = stitched_path(
+                tissue.channel,
+                normal,
+                lift,
+                tail,
+                np.asarray(jaw, float),
+                np.asarray(axis, float),
+                params.length,
+                params.segment_length,
+            )
+        else:  # the thread hangs from the needle, away from the jaw, as the needle start's
+            tip = np.asarray(jaw, float)
+            back = np.cross(normal, b - a)
+            back = back / np.linalg.norm(back)
+            path = np.vstack([tip + back * params.length, tip])
         suture = Suture.create(client, path, params)
     except BaseException:
-        tissue.remove()
+        scene.cuts += 1  # nothing half-built stays in the scene: the pad is parked
+        tissue.park((PARK_DISTANCE * scene.cuts, PARK_DISTANCE + 2.0, -PARK_DISTANCE))
         raise
     if start == "stitched":
         tissue.thread(suture)
