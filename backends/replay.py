@@ -226,6 +226,20 @@ class ReplayBackend:
         """Nothing to do: the recorded measurements already felt the hand."""
         del robot, velocity, stiffness, duration
 
+    def cut_suture(self) -> None:
+        """The recorded run's suture was cut here (``cut-suture``): the measurements that
+        follow are of the world after the cut; there is nothing to change, and no ground
+        truth to give."""
+
+    def load_suture(self, entry: str, exit: str) -> None:
+        """The recorded run loaded the next stitch's suture here (``load-suture``): as
+        :meth:`cut_suture`, nothing to change.
+
+        Args:
+            entry: the stitch's entry point's name (unused).
+            exit: its exit point's name (unused).
+        """
+
     def step(self) -> None:
         """Move to the next recorded tick."""
         self.tick += 1

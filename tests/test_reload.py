@@ -225,6 +225,11 @@ def test_a_run_cuts_and_loads_and_evaluates_both_stitches(tmp_path: Path) -> Non
     assert [(k["stitch"], k["thread"], k["cut"]) for k in ev.knot] == [(1, 2, False), (2, 1, True)]
     saved = json.loads((tmp_path / "summary.json").read_text())
     assert [k["cut"] for k in saved["knot"]] == [False, True]
+    # replayed on its own measurements, the engine cuts and loads at the same ticks
+    from suture_engine.runtime.run import replay_trace
+
+    check = replay_trace(trace, check=True)
+    assert check.ok, check.diff
 
 
 def test_a_backend_without_threads_fails_the_cut_step(tmp_path: Path) -> None:
