@@ -873,3 +873,19 @@ def test_the_held_loop_layout_ties_a_square_on_seed_7(tmp_path: Path) -> None:
     assert knot["type"] == "square" and knot["determinant"] == 9 and knot["v3"] == 0
     assert knot["through_tissue"] and knot["lay"] == "square" and knot["post_straight"]
     assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
+
+
+def test_the_main_jobs_mirrored_cinch_must_go_taut_neither_too_late_nor_too_soon() -> None:
+    proc = load_procedure(ROOT / "procedures" / "square-knot.yaml")
+    first = proc.states["simple-knot"].use.states["cinch"].params  # type: ignore[union-attr]
+    mirrored = proc.states["mirrored-knot"].use  # type: ignore[union-attr]
+    cinch = mirrored.states["cinch"].params  # type: ignore[union-attr]
+    assert first.taut_within is None and first.taut_after is None  # type: ignore[union-attr]
+    assert cinch.taut_within == pytest.approx(0.027)  # type: ignore[union-attr]
+    assert cinch.taut_after == pytest.approx(0.003)  # type: ignore[union-attr]
+    # either bound missed ends the throw in drop-loop, then not-tied (outcome failed)
+    assert mirrored.states["cinch"].on["failed"] == "drop-loop"  # type: ignore[union-attr]
+    # without the checks (the robots alone) neither applies
+    off = load_procedure(ROOT / "procedures" / "square-knot.yaml", params={"check_throw": False})
+    params = off.states["mirrored-knot"].use.states["cinch"].params  # type: ignore[union-attr]
+    assert params.taut_within is None and params.taut_after is None  # type: ignore[union-attr]
