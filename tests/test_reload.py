@@ -63,6 +63,7 @@ def test_a_cut_thread_leaves_the_world_and_a_loaded_one_is_stitched_at_its_site(
         import pybullet as p
 
         old_bodies = list(be.scene.suture.bodies)
+        suture_radius = be.scene.suture.params.collision_radius
         count = p.getNumBodies(physicsClientId=be.client)
         before = np.asarray(be.ground_truth()["centerline"])
         cut = be.cut_suture()
@@ -78,6 +79,8 @@ def test_a_cut_thread_leaves_the_world_and_a_loaded_one_is_stitched_at_its_site(
         truth = be.ground_truth()
         assert "centerline" not in truth and "tension_N" not in truth
         assert len(truth["cut_centerlines"]) == 1
+        # the cut threads' lay is still judged with the thread's contact diameter
+        assert truth["contact_diameter"] == pytest.approx(2 * suture_radius)
         _hold(be, 100)  # the world steps without a thread
         with pytest.raises(BackendError, match="cut once per load"):
             be.cut_suture()

@@ -425,12 +425,26 @@ def test_ground_truth_is_read_on_look_up_and_matches_the_simulator() -> None:
         be.reset(load_procedure(BENCH).scene, 0)
         assert be.scene is not None
         truth = be.ground_truth()
-        assert set(truth) == {"endobot_1/tool_tip", "endobot_2/tool_tip", "centerline", "tension_N"}
+        assert set(truth) == {
+            "endobot_1/tool_tip",
+            "endobot_2/tool_tip",
+            "centerline",
+            "tension_N",
+            "contact_diameter",
+        }
+        assert truth["contact_diameter"] == pytest.approx(
+            2 * be.scene.suture.params.collision_radius
+        )
         assert np.allclose(truth["centerline"], be.scene.suture.centerline())
         assert truth["tension_N"] == pytest.approx(float(be.scene.suture.tensions().max()))
         tip, _ = be.robots["endobot_1"].true_tool_pose()
         assert np.allclose(truth["endobot_1/tool_tip"], tip)
-        assert set(truth._values) == {"centerline", "tension_N", "endobot_1/tool_tip"}
+        assert set(truth._values) == {
+            "centerline",
+            "tension_N",
+            "endobot_1/tool_tip",
+            "contact_diameter",
+        }  # endobot_2/tool_tip was never looked up: never read
     finally:
         be.close()
 

@@ -213,6 +213,8 @@ class PyBulletBackend:
         self.scene: Any = None
         """The :class:`backends.pybullet.scene.Scene` when the surgical scene is built."""
         self._scene_model: Any = None
+        self._contact_diameter: float | None = None
+        """The thread's contact diameter [m] (its capsules' collision radius, twice)."""
         self.cut_threads: list[Any] = []
         """The threads cut so far (:class:`backends.pybullet.reload.CutThread`), in order."""
         self._slips_seen: dict[str, int] = {}
@@ -267,6 +269,7 @@ class PyBulletBackend:
         self._stalls_seen = {}
         self._scene_model = scene
         self.cut_threads = []
+        self._contact_diameter = None
         self.tick = 0
         self._start_q = dict(self._q0)
         base_positions = {}
@@ -367,6 +370,8 @@ class PyBulletBackend:
                     tool.set_bend(float(self.bend[0]), float(self.bend[1]))
         self.scene = built
         self.client = built.client
+        if built.suture is not None:  # a freshly built scene always has its thread
+            self._contact_diameter = 2.0 * float(built.suture.params.collision_radius)
         for i, (name, sim) in enumerate(sorted(built.robots.items())):
             # the scene's start joints (the stitched start's pulled-out stitcher) unless
             # the caller gave its own
@@ -693,7 +698,8 @@ class PyBulletBackend:
 
     def ground_truth(self) -> Mapping[str, Any]:
         """True tool-tip positions [m] and, with the surgical scene, the thread's
-        ``centerline`` [m] and ``tension_N`` (its largest segment tension [N]).
+        ``centerline`` [m], ``tension_N`` (its largest segment tension [N]) and
+        ``contact_diameter`` [m]; once a thread is cut, ``cut_centerlines`` [m].
         Evaluation and traces only.
 
         Each value is read from the simulator when it is first looked up (and kept), so a
@@ -710,6 +716,8 @@ class PyBulletBackend:
             if self.cut_threads:
                 cut = tuple(c.centerline for c in self.cut_threads)
                 getters["cut_centerlines"] = lambda: cut
+            # every thread of a scene has the same parameters, a cut one included
+            getters["contact_diameter"] = lambda: self._contact_diameter
         return _LazyTruth(getters)
 
     def cut_suture(self) -> Any:
