@@ -242,3 +242,25 @@ def test_a_backend_without_threads_fails_the_cut_step(tmp_path: Path) -> None:
     assert summary.last_fault is not None
     assert summary.last_fault["step"] == "cut-2"
     assert "no surgical scene" in summary.last_fault["reason"]
+
+
+@pytest.mark.slow
+def test_the_interrupted_suture_ties_three_square_knots_on_seed_12(tmp_path: Path) -> None:
+    """The bundled interrupted suture, seed 12 (about 16 min): three stitches 5 mm apart,
+    each tied with a square knot that lies square and binds its own stitch, each suture
+    cut; the true tension stays far under the limit. (Seeds 1, 2, 3, 5 and 13 do not tie
+    all three: docs/status.md, "Interrupted suture".)"""
+    summary = run_procedure(
+        ROOT / "procedures" / "interrupted-suture.yaml", out=tmp_path, seed=12, max_time_s=700.0
+    ).summary
+    assert summary.outcome == "succeeded", summary.last_fault
+    knots = summary.knot
+    assert isinstance(knots, list) and len(knots) == 3
+    for k in knots:
+        assert (k["type"], k["determinant"], k["v3"]) == ("square", 9, 0)
+        assert k["through_tissue"] and k["cut"] and k["post_straight"] is True
+    assert [k["thread"] for k in knots] == [2, 1, 3]  # the middle stitch first
+    stitches = summary.metrics["stitches"]
+    assert stitches["site"] == ["1", "2", "3"]
+    assert stitches["spacing_mean_mm"] == pytest.approx(5.0, abs=0.25)
+    assert summary.metrics["peak_true_tension_N"] < 0.5 * summary.tension_limit_N
