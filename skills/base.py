@@ -69,6 +69,10 @@ class Skill(ABC):
     name: ClassVar[str]
     Params: ClassVar[type[SkillParams]]
     tools: ClassVar[tuple[str, ...] | None] = None
+    scene_request: tuple[str, dict[str, Any]] | None = None
+    """A change of the world the skill asks the runtime for: ``(backend method, keyword
+    arguments)``, carried out by the interpreter (which then sets it to None) on the tick
+    it is set; None (the class default) asks for nothing (:mod:`skills.reload`)."""
 
     def __init__(self, params: SkillParams) -> None:
         """Keep the validated parameters.

@@ -49,19 +49,14 @@ class LoadSutureParams(SkillParams):
 
 
 class SutureChange(Skill):
-    """Ask the backend for one change of the suture, then hold every robot ``settle`` [s].
-
-    Attributes:
-        scene_request: ``(backend method, keyword arguments)`` until the interpreter
-            has carried it out (it sets it to None), else None.
-    """
+    """Ask the backend for one change of the suture (:attr:`Skill.scene_request`, set in
+    :meth:`start`), then hold every robot ``settle`` [s]."""
 
     action: ClassVar[str]
     """The backend's method that makes the change."""
 
     def __init__(self, params: SkillParams) -> None:
         super().__init__(params)
-        self.scene_request: tuple[str, dict[str, Any]] | None = None
         self._command: Any = None
         self._t0 = 0.0
 

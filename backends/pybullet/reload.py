@@ -27,16 +27,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 from backends.pybullet.scene import (
-    PAD_SIZE,
     Scene,
     SceneError,
-    channel_depth,
+    hanging_path,
+    model_tissue,
     stitch_points,
     stitched_path,
     suture_params,
 )
 from backends.pybullet.suture import Suture
-from backends.pybullet.tissue import Tissue
 from backends.pybullet.tools import Grasper, Stitcher
 
 __all__ = ["RELOAD_STARTS", "CutThread", "cut_thread", "load_thread"]
@@ -44,8 +43,9 @@ __all__ = ["RELOAD_STARTS", "CutThread", "cut_thread", "load_thread"]
 RELOAD_STARTS = ("stitched", "needle")
 """The start states a loaded thread can take (a held tail needs the assistant there)."""
 
-PARK_DISTANCE = 50.0
-"""How far from the scene a cut thread and its pad are parked [m] (:meth:`Suture.park`)."""
+PARKED = (50.0, 50.0, -50.0)
+"""Where cut threads and their pads are parked, far from the scene [m]
+(:meth:`Suture.park`). They touch nothing there, each other included: one place serves."""
 
 
 class CutThread(NamedTuple):
@@ -70,15 +70,13 @@ def cut_thread(scene: Scene) -> CutThread:
     if suture is None:
         raise SceneError("suture", None, ["a thread in the world (cut once per load)"])
     cut = CutThread(np.array(suture.centerline(), dtype=float), float(scene.time))
-    scene.cuts += 1
-    away = (PARK_DISTANCE * scene.cuts, PARK_DISTANCE, -PARK_DISTANCE)
     if scene.tissue is not None:
-        scene.tissue.park((away[0], away[1] + 2.0, away[2]))
+        scene.tissue.park(PARKED)
         scene.tissue = None
     for tool in scene.tools.values():
         if isinstance(tool, (Grasper, Stitcher)):
             tool.set_thread(None)
-    suture.park(away)
+    suture.park(PARKED)
     scene.suture = None
     return cut
 
@@ -131,15 +129,7 @@ def load_thread(
     client = scene.client
     normal = np.asarray(model.tissue.normal, float)
     normal = normal / np.linalg.norm(normal)
-    tissue = Tissue.create(
-        client,
-        center=tuple((np.asarray(model.tissue.wound.start) + model.tissue.wound.end) / 2),
-        entry=tuple(a),
-        exit=tuple(b),
-        normal=tuple(normal),
-        depth=channel_depth(float(np.linalg.norm(b - a))),
-        size=PAD_SIZE,
-    )
+    tissue = model_tissue(client, model, a, b)
     params = suture_params(model, bending_stiffness)
     jaw, axis = stitcher.needle_jaw()
     lift = params.collision_radius + 0.5e-3
@@ -155,15 +145,11 @@ def load_thread(
                 params.length,
                 params.segment_length,
             )
-        else:  # the thread hangs from the needle, away from the jaw, as the needle start's
-            tip = np.asarray(jaw, float)
-            back = np.cross(normal, b - a)
-            back = back / np.linalg.norm(back)
-            path = np.vstack([tip + back * params.length, tip])
+        else:
+            path = hanging_path(jaw, a, b, normal, params.length)
         suture = Suture.create(client, path, params)
     except BaseException:
-        scene.cuts += 1  # nothing half-built stays in the scene: the pad is parked
-        tissue.park((PARK_DISTANCE * scene.cuts, PARK_DISTANCE + 2.0, -PARK_DISTANCE))
+        tissue.park(PARKED)  # nothing half-built stays in the scene
         raise
     if start == "stitched":
         tissue.thread(suture)

@@ -55,6 +55,8 @@ __all__ = [
     "SceneError",
     "build_scene",
     "channel_depth",
+    "hanging_path",
+    "model_tissue",
     "needle_path",
     "pull_ends",
     "stitch_points",
@@ -154,8 +156,6 @@ class Scene:
     hold: dict[str, tuple[float, float, float, float]] = field(default_factory=dict)
     torques: dict[str, Any] = field(default_factory=dict)
     posts: dict[str, int] = field(default_factory=dict)
-    cuts: int = 0
-    """How many threads have been cut (:mod:`backends.pybullet.reload`)."""
 
     def step(self) -> None:
         """Advance the world by one physics step (1 / ``PHYSICS_RATE`` [s]).
@@ -618,6 +618,32 @@ def stitched_path(
     return np.vstack([stitched, route(hi)[1:], end])
 
 
+def model_tissue(client: int, model: Any, entry: Any, exit_: Any) -> Tissue:
+    """The scene model's tissue pad with its stitch channel from ``entry`` to ``exit_``
+    [m], centred on the wound, in the world of ``client``."""
+    normal = np.asarray(model.tissue.normal, float)
+    normal = normal / np.linalg.norm(normal)
+    a, b = np.asarray(entry, float), np.asarray(exit_, float)
+    return Tissue.create(
+        client,
+        center=tuple((np.asarray(model.tissue.wound.start) + model.tissue.wound.end) / 2),
+        entry=tuple(a),
+        exit=tuple(b),
+        normal=tuple(normal),
+        depth=channel_depth(float(np.linalg.norm(b - a))),
+        size=PAD_SIZE,
+    )
+
+
+def hanging_path(tip: Any, entry: Any, exit_: Any, normal: Any, length: float) -> Any:
+    """A thread hanging from the needle at ``tip`` [m] (the needle start): ``length`` [m]
+    laid straight out from it, away from the stitch (entry to exit, across ``normal``)."""
+    end = np.asarray(tip, float)
+    back = np.cross(np.asarray(normal, float), np.asarray(exit_, float) - np.asarray(entry, float))
+    back = back / np.linalg.norm(back)
+    return np.vstack([end + back * length, end])
+
+
 def _from_model(
     model: Any,
     seed: int,
@@ -704,15 +730,7 @@ def _build_model(
 
     normal = np.asarray(model.tissue.normal, float)
     normal = normal / np.linalg.norm(normal)
-    tissue = Tissue.create(
-        client,
-        center=tuple((np.asarray(model.tissue.wound.start) + model.tissue.wound.end) / 2),
-        entry=tuple(entry),
-        exit=tuple(exit_),
-        normal=tuple(normal),
-        depth=channel_depth(float(np.linalg.norm(exit_ - entry))),
-        size=PAD_SIZE,
-    )
+    tissue = model_tissue(client, model, entry, exit_)
     params = suture_params(model, bending_stiffness)
     stitchers = [n for n, spec in sorted(model.robots.items()) if spec.tool == "stitcher"]
     holders = [n for n, spec in sorted(model.robots.items()) if spec.tool == "grasper"]
@@ -777,10 +795,7 @@ def _build_model(
                     holds_tail = assistant
     elif stitchers:
         tip, _ = robots[stitchers[0]].true_tool_pose()
-        tip = np.asarray(tip, float)
-        back = np.cross(normal, exit_ - entry)
-        back = back / np.linalg.norm(back)
-        path = np.vstack([tip + back * params.length, tip])
+        path = hanging_path(tip, entry, exit_, normal, params.length)
     else:
         along = (exit_ - entry) / np.linalg.norm(exit_ - entry)
         half = (params.length - 0.02) / 2

@@ -685,10 +685,10 @@ class Suture:
         for cons in [*self.links, self._needle_link]:
             if cons >= 0:
                 p.removeConstraint(cons, physicsClientId=c)
-        for i, body in enumerate(b for b in [*self.bodies, self.needle_body] if b >= 0):
+        where = [float(v) for v in at]
+        for body in (b for b in [*self.bodies, self.needle_body] if b >= 0):
             p.changeDynamics(body, -1, mass=0.0, physicsClientId=c)
             p.setCollisionFilterGroupMask(body, -1, 0, 0, physicsClientId=c)
-            where = [float(at[0]) + 0.01 * i, float(at[1]), float(at[2])]
             p.resetBasePositionAndOrientation(body, where, [0, 0, 0, 1], physicsClientId=c)
         self.bodies.clear()
         self.links.clear()

@@ -233,9 +233,9 @@ class Tissue:
         for cons in self._anchors.values():
             p.removeConstraint(cons, physicsClientId=c)
         self._anchors.clear()
-        for i, body in enumerate(self.bodies):
+        where = [float(v) for v in at]
+        for body in self.bodies:
             p.setCollisionFilterGroupMask(body, -1, 0, 0, physicsClientId=c)
-            where = [float(at[0]) + 0.5 * i, float(at[1]), float(at[2])]
             p.resetBasePositionAndOrientation(body, where, [0, 0, 0, 1], physicsClientId=c)
         self.bodies.clear()
         self.suture = self._tracked = None

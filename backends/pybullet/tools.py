@@ -738,8 +738,7 @@ class Grasper(Tool):
         self.held_segment = -1
         self._lag = None
         self.suture = suture
-        if self.solid:
-            self._solid_for = -2  # _solidify sets the new capsules' contacts
+        if self.solid:  # the new capsules' contacts with the jaws
             self._solidify()
         if self.hook_body >= 0:
             self._set_hook_collision(self._hook_on)

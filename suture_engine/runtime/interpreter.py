@@ -427,6 +427,8 @@ class Interpreter:
             records = a.unpredictable(f"skill-failure:{type(exc).__name__}: {exc}")
             self._record_transitions(time_ns, records)
             return None
+        # None on Skill (its default); a duck-typed skill (a test's scripted one) may lack
+        # it. The look-up costs ~10 ns a tick either way.
         if getattr(a.active_skill, "scene_request", None) is not None:
             failure = self._scene_request(time_ns, a.active_skill)
             if failure is not None:
