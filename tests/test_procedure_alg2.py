@@ -742,6 +742,46 @@ def test_a_single_throw_is_tugged_and_must_draw_taut_soon(
         assert plan.steps["tighten"].on_done == "tug"
 
 
+HELD_TUG_120_TIED_MOST_MM = 8.85
+"""Most travel before the held-loop tug's guard was met on the 120 mm thread (the
+single-throw procedure's bench, ``--set hold_loop=true``, stitched start, seeds 1-3, 5
+and 6 of 1-6, 2026-12-03: 7.10-8.85 mm), each throw a trefoil binding the stitch [mm]."""
+HELD_TUG_120_UNTIED_MM = 14.67
+"""The same on seed 4, which tied nothing; with the 140 mm thread's 28.6 mm bound it ended
+``succeeded`` with no knot [mm]."""
+HELD_TUG_140_TIED_MOST_MM = 28.0
+"""Most travel before the held-loop tug's guard on the square knot's 140 mm thread, on
+first throws that tied (22.3-28.0 mm) [mm]."""
+HELD_TUG_140_UNTIED_LEAST_MM = 29.28
+"""Least travel on a first throw that tied nothing there (seed 8, 2026-12-02) [mm]."""
+
+
+@pytest.mark.parametrize(
+    ("procedure", "state", "tied_most", "untied_least"),
+    [
+        ("knot-algorithm-2.yaml", "tug", HELD_TUG_120_TIED_MOST_MM, HELD_TUG_120_UNTIED_MM),
+        ("square-knot.yaml", "simple-knot.tug", HELD_TUG_140_TIED_MOST_MM,
+         HELD_TUG_140_UNTIED_LEAST_MM),
+    ],
+)
+def test_the_held_loop_tug_bound_follows_the_thread_it_was_measured_on(
+    procedure: str, state: str, tied_most: float, untied_least: float
+) -> None:
+    """The held-loop first throw's tug bound lies between the tied and the untied throws
+    measured on the thread the procedure runs with: 120 mm for the single throw on its
+    own bench, 140 mm for the square knot. (One bound for both passed seed 4's untied
+    single throw as tied.)"""
+    from suture_engine.runtime.plan import compile_procedure
+
+    params: dict[str, Any] = {"stitch": False, "hold_loop": True}
+    proc: Any = load_procedure(ROOT / "procedures" / procedure, params=params)
+    step = compile_procedure(proc).steps[state]
+    assert step.enabled
+    sub = proc if procedure.startswith("knot") else proc.states["simple-knot"].use
+    bound = sub.states["tug"].params.taut_within
+    assert tied_most * 1e-3 < bound < untied_least * 1e-3
+
+
 @pytest.mark.slow
 def test_a_first_throw_that_tied_nothing_is_caught_by_its_tug(tmp_path: Path) -> None:
     """The main job, seed 15 (2026-12-02, the held loop 33 mm up): the first throw ties
