@@ -760,8 +760,12 @@ HELD_TUG_140_UNTIED_LEAST_MM = 29.28
     ("procedure", "state", "tied_most", "untied_least"),
     [
         ("knot-algorithm-2.yaml", "tug", HELD_TUG_120_TIED_MOST_MM, HELD_TUG_120_UNTIED_MM),
-        ("square-knot.yaml", "simple-knot.tug", HELD_TUG_140_TIED_MOST_MM,
-         HELD_TUG_140_UNTIED_LEAST_MM),
+        (
+            "square-knot.yaml",
+            "simple-knot.tug",
+            HELD_TUG_140_TIED_MOST_MM,
+            HELD_TUG_140_UNTIED_LEAST_MM,
+        ),
     ],
 )
 def test_the_held_loop_tug_bound_follows_the_thread_it_was_measured_on(
