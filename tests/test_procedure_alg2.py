@@ -874,11 +874,13 @@ def test_the_square_knot_and_the_single_throw_hold_the_loop_by_default() -> None
         ("secure-knot.yaml", "first-throw", "second-throw"),
         ("surgeons-knot.yaml", "double-knot", "mirrored-knot"),
     ):
-        loose = compile_procedure(load_procedure(ROOT / "procedures" / name))
+        proc: Any = load_procedure(ROOT / "procedures" / name)
+        loose = compile_procedure(proc)
         assert loose.steps[f"{first}.retract-hook"].enabled
         assert not loose.steps[f"{first}.release-hook"].enabled
-        assert loose.steps[f"{first}.cinch"].enabled
-        proc: Any = load_procedure(ROOT / "procedures" / name)
+        # the loose first throw's cinch is guarded (the held loop's is not)
+        cinch = proc.states[first].use.states["cinch"].params
+        assert cinch.until_tension == pytest.approx(0.3)
         assert proc.states[second].use.states["over-hook"].params.height == pytest.approx(25e-3)
     # the tug is a check: with the checks off (no strand to draw on the robots-only
     # backend) it is left out
