@@ -192,31 +192,6 @@ def test_two_turns_turn_the_arm_along_the_tail_after_the_grasp() -> None:
         assert sign * (move @ arm) > 0.95, state
 
 
-def test_the_mirrored_throw_after_a_double_lays_the_tail_where_it_does_after_one_turn() -> None:
-    """After a double throw the grasper's arm is still turned along the tail, so the
-    mirrored throw's first two moves (``after_double``) take other tool tips; the jaws,
-    and the tail's end in them, go where they go after a one-turn first throw."""
-    one: Any = load_procedure(PROC, params={"turns": 1})
-    after: Any = load_procedure(
-        PROC, params={"second": True, "mirror": True, "stitch": False, "after_double": True}
-    )
-    usual: Any = load_procedure(PROC, params={"second": True, "mirror": True, "stitch": False})
-    points = usual.scene.tissue.points
-    for state in ("cross-tail", "lower-tail"):
-        a, u = after.states[state].params, usual.states[state].params
-        jaws_after, _ = _bent_jaws(
-            after,
-            np.asarray(points[a.target]) + np.asarray(a.offset),
-            load_procedure(PROC, params={"turns": 2}).states["align-arm"].params.angles,
-        )
-        jaws_usual, _ = _bent_jaws(
-            usual,
-            np.asarray(points[u.target]) + np.asarray(u.offset),
-            one.states["point-down"].params.angles,
-        )
-        assert np.linalg.norm(jaws_after - jaws_usual) < 0.1e-3, state
-
-
 def robot_bases(scene: Any) -> dict[str, tuple[Any, Any]]:
     """Each robot's base (position, row-major rotation), from the scene's declared pose."""
     bases = {}
