@@ -148,6 +148,28 @@ def test_one_knot_entry_per_stitch() -> None:
     assert entries[0]["lay"] == knot_lay(first, diameter=0.5 * MM).lay
 
 
+def test_a_passage_that_rises_near_the_surface_inside_the_tissue_is_one_bite() -> None:
+    """One stitch whose thread, inside the channel, comes up to 0.03 mm under the surface
+    (above the 0.05 mm that counts as inside, still below the plane): one bite, and one
+    knot entry that holds the whole square knot. Seen in a run (algorithm 3's square knot,
+    seed 2): counted as two bites with the same two crossings, the knot was cut between
+    them and both halves read as unknots."""
+    one = _thread(SITES[:1])
+    assert len(find_bites(one, SURFACE, NORMAL)) == 1
+    inside = np.flatnonzero(one[:, 2] < -0.05 * MM)
+    middle = inside[len(inside) // 2]
+    one[middle, 2] = -0.03 * MM
+    runs = np.flatnonzero(np.diff(np.flatnonzero(one[:, 2] < -0.05 * MM)) > 1)
+    assert len(runs) == 1  # two runs of points deeper than 0.05 mm, one passage
+    bites = find_bites(one, SURFACE, NORMAL)
+    assert len(bites) == 1
+    np.testing.assert_allclose(bites[0].entry, (SITES[0][0], -4 * MM, 0.0), atol=1e-12)
+    np.testing.assert_allclose(bites[0].exit, (SITES[0][0], 4 * MM, 0.0), atol=1e-12)
+    assert bites[0].first == inside[0] and bites[0].last == inside[-1]
+    entries = knot_entries(one, SURFACE, NORMAL, contact_diameter=0.5 * MM)
+    assert len(entries) == 1 and entries[0]["type"] == "square"
+
+
 def test_post_straight_is_null_with_a_reason_without_a_contact_diameter() -> None:
     one = _thread(SITES[:1])
     entries = knot_entries(one, SURFACE, NORMAL, contact_diameter=None)

@@ -164,8 +164,13 @@ def find_bites(
         j = last
         while j < len(pts) - 1 and h[j + 1] < 0.0:
             j += 1
+        # One passage runs from plane crossing to plane crossing: a point in it that
+        # rises above min_depth without leaving the plane does not split it in two (the
+        # two runs would share both crossings, and the knot would be cut between them).
+        k = j + 1
         if i == 0 or j == len(pts) - 1:
             continue
+        last = first + int(np.flatnonzero(inside[first : j + 1])[-1])
         entry = _crossing(pts[i - 1], pts[i], float(h[i - 1]), float(h[i]))
         exit_ = _crossing(pts[j], pts[j + 1], float(h[j]), float(h[j + 1]))
         bite = Bite(entry, exit_, float(-h[first : last + 1].min()), first, last)
