@@ -97,8 +97,8 @@ def test_states_follow_the_thesis_steps() -> None:
         "point-down",
         "carry-tail",  # second throw only, not mirrored: the jaws still hold the tail
         "grab-tail",  # first throw, and the mirrored second throw
-        "align-arm",  # two turns only
-        "align-jaws",  # two turns only
+        "align-arm",  # two turns, and the mirrored second throw
+        "align-jaws",  # two turns, and the mirrored second throw
         "draw-tail",
         "clear-jaws",  # mirrored second throw only
         "slide-off",
@@ -190,6 +190,42 @@ def test_two_turns_turn_the_arm_along_the_tail_after_the_grasp() -> None:
         move = np.asarray(two.states[state].params.target)
         move = move / np.linalg.norm(move)
         assert sign * (move @ arm) > 0.95, state
+
+
+def test_the_mirrored_throw_turns_the_arm_along_the_tail_to_the_first_knot() -> None:
+    """The mirrored second throw: the jaws take the tail's end where cross-tail laid it,
+    across the wound, with the arm square to the tail (which runs from the end towards
+    the first knot, world -y). After the grasp the arm is turned to point along the tail
+    towards the knot, about 10 deg down, and the jaws are brought back to the end's distance from
+    the wound, on the stitch's line. The first throw and the unmirrored second throw keep
+    their layout (the two steps are left out)."""
+    from suture_engine.runtime.plan import compile_procedure
+
+    mirrored: Any = load_procedure(PROC, params={"second": True, "mirror": True, "stitch": False})
+    plan = compile_procedure(mirrored)
+    for params in ({}, {"second": True, "stitch": False}):
+        other = compile_procedure(load_procedure(PROC, params=params))
+        for step in ("align-arm", "align-jaws"):
+            assert plan.steps[step].enabled and not other.steps[step].enabled, (params, step)
+
+    points = mirrored.scene.tissue.points
+    grab = mirrored.states["grab-tail"].params
+    entry, exit_ = np.asarray(points[grab.target]), np.asarray(points["exit_2"])
+    tip = entry + np.asarray(grab.offset)
+    jaws0, arm = _bent_jaws(mirrored, tip, mirrored.states["point-down"].params.angles)
+    # at the grasp the jaws lie across the wound, past the exit, the arm square to the
+    # stitch's line (along which the tail runs back to the knot)
+    assert jaws0[1] > exit_[1] + 5e-3 and abs(arm[1]) < 0.1
+    tip = tip + np.asarray(mirrored.states["align-jaws"].params.target)
+    jaws, arm = _bent_jaws(mirrored, tip, mirrored.states["align-arm"].params.angles)
+    level = np.array([arm[0], arm[1], 0.0]) / np.hypot(arm[0], arm[1])
+    assert math.degrees(math.acos(-level[1])) < 2.0  # along the tail, towards the knot
+    # 5.7 deg down at the grasp's tool pose; 10.2 deg once the tool tip has moved (the
+    # shaft turns about its port): down towards the pad, not into it
+    assert 8.0 < math.degrees(math.asin(-arm[2])) < 12.0
+    assert abs(jaws[0] - entry[0]) < 0.5e-3  # on the stitch's line
+    assert abs(jaws[1] - jaws0[1]) < 1e-3  # as far out as the end was taken
+    assert abs(jaws[2] - jaws0[2]) < 1e-3
 
 
 def robot_bases(scene: Any) -> dict[str, tuple[Any, Any]]:
