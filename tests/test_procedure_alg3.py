@@ -97,8 +97,8 @@ def test_states_follow_the_thesis_steps() -> None:
         "point-down",
         "carry-tail",  # second throw only, not mirrored: the jaws still hold the tail
         "grab-tail",  # first throw, and the mirrored second throw
-        "align-arm",  # two turns, and the mirrored second throw
-        "align-jaws",  # two turns, and the mirrored second throw
+        "align-arm",  # two turns, and the mirrored second throw with align_mirror
+        "align-jaws",  # two turns, and the mirrored second throw with align_mirror
         "draw-tail",
         "clear-jaws",  # mirrored second throw only
         "slide-off",
@@ -193,17 +193,19 @@ def test_two_turns_turn_the_arm_along_the_tail_after_the_grasp() -> None:
 
 
 def test_the_mirrored_throw_turns_the_arm_along_the_tail_to_the_first_knot() -> None:
-    """The mirrored second throw: the jaws take the tail's end where cross-tail laid it,
-    across the wound, with the arm square to the tail (which runs from the end towards
-    the first knot, world -y). After the grasp the arm is turned to point along the tail
-    towards the knot, about 10 deg down, and the jaws are brought back to the end's distance from
-    the wound, on the stitch's line. The first throw and the unmirrored second throw keep
-    their layout (the two steps are left out)."""
+    """The mirrored second throw with ``align_mirror``: the jaws take the tail's end where
+    cross-tail laid it, across the wound, with the arm square to the tail (which runs from
+    the end towards the first knot, world -y). After the grasp the arm is turned to point
+    along the tail towards the knot, about 10 deg down, and the jaws are brought back to the
+    end's distance from the wound, on the stitch's line. The first throw and the unmirrored
+    second throw keep their layout, and so does the mirrored throw by default (the two
+    steps are left out)."""
     from suture_engine.runtime.plan import compile_procedure
 
-    mirrored: Any = load_procedure(PROC, params={"second": True, "mirror": True, "stitch": False})
+    second = {"second": True, "mirror": True, "stitch": False}
+    mirrored: Any = load_procedure(PROC, params={**second, "align_mirror": True})
     plan = compile_procedure(mirrored)
-    for params in ({}, {"second": True, "stitch": False}):
+    for params in ({}, {"second": True, "stitch": False}, second):
         other = compile_procedure(load_procedure(PROC, params=params))
         for step in ("align-arm", "align-jaws"):
             assert plan.steps[step].enabled and not other.steps[step].enabled, (params, step)
