@@ -772,3 +772,15 @@ def test_algorithm_3_ties_a_square_knot_on_seed_1_at_the_low_floor(tmp_path: Pat
     v3 0) that binds the stitch. At the default floor the slide-off stops it."""
     summary, _ = _alg3_square_knot(tmp_path, 1, "mirrored_slide_off_after=5mm")
     _assert_square(summary)
+
+
+@pytest.mark.slow
+def test_with_the_arm_turned_along_the_tail_seed_1_ties_a_square_at_the_default_floor(
+    tmp_path: Path,
+) -> None:
+    """``align_mirror``: the mirrored throw turns the bent arm along the tail after the
+    grasp. Seed 1, whose default throw is stopped by the mirrored slide-off's 16 mm floor,
+    then goes taut after about 22 mm and ends ``succeeded`` with a square knot
+    (determinant 9, v3 0) that binds the stitch, under the tension limit (2026-12-04)."""
+    summary, _ = _alg3_square_knot(tmp_path, 1, "align_mirror=true")
+    _assert_square(summary)
