@@ -39,7 +39,7 @@ Usage::
         [--workers 2] [--out runs/knot-success] [--backend pybullet-surgical]
         [--base-seed 0] [--no-perturb] [--bending-stiffness EI] [--single] [--resume]
         [--only base,friction,stiffness] [--base-part all|common|relative]
-        [--set NAME=VALUE ...]
+        [--set NAME=VALUE ...] [--runs 1,2,5-9]
 
 ``--only`` applies only the named perturbations (an ablation): run ``i`` keeps the
 values run ``i`` draws, the others stay nominal. ``--base-part`` splits each run's base
@@ -47,7 +47,9 @@ error into the part both robots share (their mean: the tools' relative poses sta
 only their poses to the tissue and thread are off) and the rest (the relative error that
 tool-to-tool moves suffer), and applies one of them. ``--set`` passes a procedure
 parameter to every run (``--set register=true``: the throw first registers both robots'
-bases on the scene's posts).
+bases on the scene's posts). ``--runs`` runs only the named runs of the ``--seeds`` draws,
+each with the seed and perturbation it draws in the whole sweep: to re-measure the runs a
+change can reach (a change to a second throw cannot alter a run whose first throw failed).
 
 The table is rewritten after every run, so a stopped sweep keeps its rows; ``--resume``
 keeps them and runs only the runs still missing (same algorithm, run, seed and
@@ -292,6 +294,23 @@ def make_jobs(
             out_dir = str(out / "runs" / f"alg{alg}-{i:03d}")
             jobs.append(Job(alg, i, seed, pert, opts, backend, out_dir, max_time_s))
     return jobs
+
+
+def parse_runs(text: str, seeds: int) -> set[int]:
+    """The run numbers in ``text`` (``"1,2,5-9"``), each in ``range(seeds)``.
+
+    Raises ``ValueError`` naming the item that is not a run number or a range of them."""
+    chosen: set[int] = set()
+    for item in (part.strip() for part in text.split(",")):
+        lo, sep, hi = item.partition("-")
+        try:
+            first, last = int(lo), int(hi if sep else lo)
+        except ValueError:
+            raise ValueError(f"{item!r} is not a run number or a range N-M") from None
+        if not 0 <= first <= last < seeds:
+            raise ValueError(f"{item!r}: runs go from 0 to {seeds - 1} (--seeds {seeds})")
+        chosen.update(range(first, last + 1))
+    return chosen
 
 
 def knot_type(knot: Any) -> str:
@@ -578,6 +597,12 @@ def main(argv: Sequence[str]) -> int:
         "--bending-stiffness", type=float, default=None, help="nominal thread EI [N*m^2]"
     )
     ap.add_argument(
+        "--runs",
+        default=None,
+        help="run only these runs of the --seeds draws, e.g. 1,2,5-9 (each keeps its own "
+        "seed and perturbation)",
+    )
+    ap.add_argument(
         "--resume",
         action="store_true",
         help="keep the rows already in OUT/results.csv and run only the missing runs",
@@ -612,6 +637,12 @@ def main(argv: Sequence[str]) -> int:
     if any("=" not in v for v in args.set):
         ap.error(f"--set: NAME=VALUE, got {args.set!r}")
     jobs = [j._replace(single=args.single, sets=tuple(args.set)) for j in jobs]
+    if args.runs is not None:
+        try:
+            chosen = parse_runs(args.runs, args.seeds)
+        except ValueError as exc:
+            ap.error(f"--runs: {exc}")
+        jobs = [j for j in jobs if j.run in chosen]
     nominal_ei = args.bending_stiffness
     if nominal_ei is not None:
         if "suture_bending_stiffness" not in accepted:

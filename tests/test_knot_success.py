@@ -263,6 +263,22 @@ def test_resume_runs_only_the_runs_without_a_row_of_the_same_seed(tmp_path: Path
     assert [j.run for j in ks.pending(jobs, ks.read_csv(back))] == [1, 2]  # floats read back
 
 
+def test_chosen_runs_are_read_as_numbers_and_ranges_within_the_draws() -> None:
+    assert ks.parse_runs("1,2, 5-7,2", 20) == {1, 2, 5, 6, 7}
+    assert ks.parse_runs("0", 1) == {0}
+    for bad in ("", "a", "3-1", "-1", "19-20", "20"):
+        with pytest.raises(ValueError):
+            ks.parse_runs(bad, 20)
+
+
+def test_command_line_refuses_runs_outside_the_draws(tmp_path: Path) -> None:
+    for bad in ("2,9", "x"):
+        with pytest.raises(SystemExit) as err:
+            ks.main(["--algorithms", "3", "--seeds", "4", "--runs", bad, "--out", str(tmp_path)])
+        assert err.value.code == 2
+    assert not (tmp_path / "results.csv").exists()
+
+
 def test_command_line_refuses_bad_algorithms() -> None:
     with pytest.raises(SystemExit) as err:
         ks.main(["--algorithms", "4", "--seeds", "1"])
