@@ -655,8 +655,9 @@ def main(argv: Sequence[str]) -> int:
     what = "knot-algorithm-N.yaml (one throw)" if args.single else "square-knot.yaml"
     if args.set:
         what += " --set " + " --set ".join(args.set)
+    runs = f"{args.seeds} run(s)" if args.runs is None else f"runs {args.runs} of {args.seeds}"
     print(
-        f"{what} on {args.backend}: {args.seeds} run(s) per algorithm "
+        f"{what} on {args.backend}: {runs} per algorithm "
         f"{algorithms}, max {args.max_time:g} s simulated each, {args.workers} worker(s)"
     )
     if perturb:
