@@ -10,6 +10,7 @@ minimisation, not the skill's own closed form.
 
 from __future__ import annotations
 
+import itertools
 import math
 from pathlib import Path
 from typing import Any
@@ -565,6 +566,61 @@ def test_the_mirrored_loop_keeps_the_shafts_apart() -> None:
         for q in path.table[::20]
     )
     assert gap > 5e-3
+
+
+# The holder's tool tip where the first throw leaves it, at the mirrored hand-up's first tick
+# (world, from its joints in the traces of knot_success's registered runs 0 and 5, square
+# knot, algorithm 3): the ends of the range the eight runs 0-7 span.
+FIRST_THROW_END_MM = ((-54.0, -17.2, 1.4), (-68.5, -17.9, 2.4))
+# How far the simulated shaft's axis is from a post's surface when they touch
+# (register-bases.yaml's shaft_radius: the touches measured it).
+SHAFT_TOUCH_MM = 3.48
+
+
+def _post_clearance(proc: Any, points_mm: list[Any]) -> float:
+    """Smallest clearance [m] between the holder's shaft and the stitcher's near post over
+    min-jerk moves through ``points_mm`` (world, as move-to plans them: straight in the
+    joints), beyond the touch: the shaft's axis (tip to its RCM point) against the post's
+    axis, less the post's radius and SHAFT_TOUCH_MM; sampled, not a skill's own figure."""
+    bases = robot_bases(proc.scene)
+    base = bases["endobot_1"]
+    o1 = np.asarray(base[0])
+    post = proc.scene.posts["stitcher_near"]
+    bottom = np.asarray(post.position, dtype=float)
+    top = bottom + np.array([0.0, 0.0, post.height])
+    qs = [ik_world(np.asarray(pt) * 1e-3, 0.0, base) for pt in points_mm]
+    gap = min(
+        sampled_gap(o1, tip_world(a + s * (b - a), base), bottom, top, n=201)
+        for a, b in itertools.pairwise(qs)
+        for s in np.linspace(0.0, 1.0, 101)
+    )
+    return gap - post.radius - SHAFT_TOUCH_MM * 1e-3
+
+
+def test_with_registration_the_mirrored_holder_goes_round_the_near_post() -> None:
+    """With registration (the scene's calibration posts), the mirrored throw's holder
+    goes through ``clear-post`` before hand-up: the straight move from where the first
+    throw leaves it swept its shaft into the stitcher's near post (registered runs 5 and
+    7 locked there at 4.5 N on the holder's base estimate), the move through clear-post's
+    point keeps it more than 2.5 mm clear. Without the posts the step is left out."""
+    from suture_engine.runtime.plan import compile_procedure
+
+    second = {"second": True, "mirror": True, "stitch": False}
+    proc: Any = load_procedure(PROC, params={**second, "register": True})
+    assert compile_procedure(proc).steps["clear-post"].enabled
+    for params in (second, {"second": True, "stitch": False, "register": True}):
+        other = compile_procedure(load_procedure(PROC, params=params))
+        assert not other.steps["clear-post"].enabled, params
+    points = proc.scene.tissue.points
+
+    def place(state: str) -> Any:
+        prm = proc.states[state].params
+        return (np.asarray(points[prm.target]) + np.asarray(prm.offset)) * 1e3
+
+    hand, via = place("hand-up"), place("clear-post")
+    for start in FIRST_THROW_END_MM:
+        assert _post_clearance(proc, [start, hand]) < 0.5e-3, start
+        assert _post_clearance(proc, [start, via, hand]) > 2.5e-3, start
 
 
 SLIDE_OFF_TIED_LEAST_MM = 29.7
