@@ -598,23 +598,26 @@ def _post_clearance(proc: Any, points_mm: list[Any]) -> float:
 
 
 def test_with_registration_the_mirrored_holder_goes_round_the_near_post() -> None:
-    """With registration (the scene's calibration posts), the mirrored throw's holder
-    goes through ``clear-post`` before hand-up: the straight move from where the first
-    throw leaves it swept its shaft into the stitcher's near post (registered runs 5 and
-    7 locked there at 4.5 N on the holder's base estimate), the move through clear-post's
-    point keeps it more than 2.5 mm clear. Without the posts the step is left out."""
+    """With registration (the scene's calibration posts), the square knot's mirrored
+    throw (algorithm 3) sends the holder through ``clear-post`` before hand-up: the
+    straight move from where the first throw leaves it swept its shaft into the
+    stitcher's near post (registered runs 5 and 7 locked there at 4.5 N on the holder's
+    base estimate); the move through clear-post's point keeps it more than 2.5 mm clear.
+    Without the posts, and on the first throw, the step is left out."""
     from suture_engine.runtime.plan import compile_procedure
 
-    second = {"second": True, "mirror": True, "stitch": False}
-    proc: Any = load_procedure(PROC, params={**second, "register": True})
-    assert compile_procedure(proc).steps["clear-post"].enabled
-    for params in (second, {"second": True, "stitch": False, "register": True}):
-        other = compile_procedure(load_procedure(PROC, params=params))
-        assert not other.steps["clear-post"].enabled, params
+    square = ROOT / "procedures" / "square-knot.yaml"
+    proc: Any = load_procedure(square, params={"algorithm": 3, "register": True})
+    steps = compile_procedure(proc).steps
+    assert steps["mirrored-knot.clear-post"].enabled
+    assert not steps["simple-knot.clear-post"].enabled
+    plain = compile_procedure(load_procedure(square, params={"algorithm": 3})).steps
+    assert not plain["mirrored-knot.clear-post"].enabled
+    mirrored = proc.states["mirrored-knot"].use
     points = proc.scene.tissue.points
 
     def place(state: str) -> Any:
-        prm = proc.states[state].params
+        prm = mirrored.states[state].params
         return (np.asarray(points[prm.target]) + np.asarray(prm.offset)) * 1e3
 
     hand, via = place("hand-up"), place("clear-post")
@@ -653,6 +656,36 @@ ALIGNED_SQUARE_LEAST_MM = 4.5
 """Least such travel where the thread held the square (perturbed runs 1, 9, 16, 15, 13:
 6.9-21.4 mm; with registration first, runs 0, 3, 4: 11.1-16.6 mm, and run 1, 4.5 mm;
 unperturbed seeds 0-9: 9.3-19.6 mm) [mm]."""
+
+ALIGNED_CLEAR_SQUARE_MOST_N = 1.12
+"""With ``align_mirror``: the largest base estimate (either robot) in the mirrored
+``clear-jaws`` where the square followed (registered run 3 of ``knot_success``'s draws:
+holder 0.70 N, grasper 1.12 N; the other squares, perturbed runs 1, 9, 13, 15, 16 and
+registered runs 0, 1, 4: at most 0.54 N) [N]."""
+ALIGNED_CLEAR_CAUGHT_LEAST_N = 2.47
+"""The least, over the throws whose loop caught on the arm in ``clear-jaws`` (perturbed
+runs 5 and 8, registered run 6: the strand taut before the slide-off, which then missed,
+run 6 at 8.15 N true), of the largest estimate either robot read there (grasper 2.72,
+2.65, 2.47 N; holder 1.81, 1.92, 1.58 N) [N]."""
+
+
+@pytest.mark.parametrize("align", [True, False])
+def test_the_turned_throws_clear_jaws_locks_once_the_loop_catches_on_the_arm(align: bool) -> None:
+    """With the arm turned along the tail, the mirrored ``clear-jaws`` is bounded between
+    the estimates it read where the square followed and where the loop caught on the arm
+    (then the slide-off started on a taut strand and pinched it); without the turn it
+    keeps the throw's ``max_tension``."""
+    from suture_engine.runtime.plan import compile_procedure
+
+    params = {"algorithm": 3, "align_mirror": align}
+    proc: Any = load_procedure(ROOT / "procedures" / "square-knot.yaml", params=params)
+    step = compile_procedure(proc).steps["mirrored-knot.clear-jaws"]
+    assert step.enabled
+    bound = step.invariant.max_tension_N
+    if align:
+        assert ALIGNED_CLEAR_SQUARE_MOST_N < bound < ALIGNED_CLEAR_CAUGHT_LEAST_N
+    else:
+        assert bound == proc.states["mirrored-knot"].use.params["max_tension"]
 
 
 @pytest.mark.parametrize(
