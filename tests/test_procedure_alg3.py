@@ -670,7 +670,9 @@ ALIGNED_CLEAR_SQUARE_MOST_N = 1.12
 """With ``align_mirror``: the largest base estimate (either robot) in the mirrored
 ``clear-jaws`` where the square followed (registered run 3 of ``knot_success``'s draws:
 holder 0.70 N, grasper 1.12 N; the other squares, perturbed runs 1, 9, 13, 15, 16 and
-registered runs 0, 1, 4: at most 0.54 N) [N]."""
+registered runs 0, 1, 4: at most 0.54 N; unperturbed seeds 1, 2, 8: at most 0.22 N). One
+registered run since then held a square when the 1.4 N bound locked it (run 6 with the
+first way round the post: holder 1.32 N, grasper 1.41 N; docs/status.md) [N]."""
 ALIGNED_CLEAR_CAUGHT_LEAST_N = 2.47
 """The least, over the throws whose loop caught on the arm in ``clear-jaws`` (perturbed
 runs 5 and 8, registered run 6: the strand taut before the slide-off, which then missed,
