@@ -187,3 +187,36 @@ def test_parameter_bounds_and_bare_numbers_in_the_declared_unit(tmp_path: Path) 
     assert [p.code for p in result.problems] == ["missing-scene"]  # a file alone needs a scene
     codes = [p.code for p in load(sub, params={"tail": "11 cm"}).problems]
     assert sorted(codes) == ["missing-scene", "out-of-bounds"]
+
+
+@pytest.mark.parametrize(("scene", "posts"), [("bench.yaml", 0), ("bench-posts.yaml", 4)])
+def test_scene_posts_counts_the_calibration_posts_for_every_included_file(
+    tmp_path: Path, scene: str, posts: int
+) -> None:
+    """``${scene.posts}`` is the number of posts the scene file declares (bench.yaml none,
+    bench-posts.yaml four), and a ``use:``d procedure reads its caller's scene."""
+    hold = "skill: hold, with: {robot: grasper, duration: '${scene.posts * 1 s}'}"
+    sub = tmp_path / "sub.yaml"
+    sub.write_text(
+        "procedure: sub\n"
+        "initial: b\n"
+        "states:\n"
+        f"  b: {{{hold}, on: {{done: end}}}}\n"
+        "  end: {outcome: succeeded}\n"
+    )
+    top = tmp_path / "top.yaml"
+    top.write_text(
+        "procedure: top\n"
+        f"scene: {PROCEDURES / 'scenes' / scene}\n"
+        "roles: {stitcher: endobot_1, grasper: endobot_2}\n"
+        "initial: a\n"
+        "states:\n"
+        f"  a: {{{hold}, on: {{done: b}}}}\n"
+        "  b: {use: sub.yaml, on: {done: end}}\n"
+        "  end: {outcome: succeeded}\n"
+    )
+    result = load(top, allow_outside=True)
+    assert result.problems == []
+    assert result.procedure is not None
+    assert result.procedure.states["a"].params.duration == posts
+    assert result.procedure.states["b"].use.states["b"].params.duration == posts

@@ -573,16 +573,16 @@ def test_the_mirrored_loop_keeps_the_shafts_apart() -> None:
 # (world, from its joints in the traces of knot_success's registered runs 0 and 5, square
 # knot, algorithm 3): the ends of the range the eight runs 0-7 span.
 FIRST_THROW_END_MM = ((-54.0, -17.2, 1.4), (-68.5, -17.9, 2.4))
-# How far the simulated shaft's axis is from a post's surface when they touch
-# (register-bases.yaml's shaft_radius: the touches measured it).
-SHAFT_TOUCH_MM = 3.48
 
 
 def _post_clearance(proc: Any, points_mm: list[Any]) -> float:
     """Smallest clearance [m] between the holder's shaft and the stitcher's near post over
     min-jerk moves through ``points_mm`` (world, as move-to plans them: straight in the
     joints), beyond the touch: the shaft's axis (tip to its RCM point) against the post's
-    axis, less the post's radius and SHAFT_TOUCH_MM; sampled, not a skill's own figure."""
+    axis, less the post's radius and the distance at which the simulated shaft's axis
+    touches a post (``register-bases.yaml``'s ``shaft_radius``, measured by its touches);
+    sampled, not a skill's own figure."""
+    touch = load_procedure(ROOT / "procedures" / "register-bases.yaml").states["stitcher"]
     bases = robot_bases(proc.scene)
     base = bases["endobot_1"]
     o1 = np.asarray(base[0])
@@ -595,7 +595,7 @@ def _post_clearance(proc: Any, points_mm: list[Any]) -> float:
         for a, b in itertools.pairwise(qs)
         for s in np.linspace(0.0, 1.0, 101)
     )
-    return gap - post.radius - SHAFT_TOUCH_MM * 1e-3
+    return gap - post.radius - touch.params.shaft_radius
 
 
 def test_with_registration_the_mirrored_holder_goes_round_the_near_post() -> None:

@@ -530,6 +530,9 @@ def _scene_namespaces(scene: Scene) -> dict[str, Namespace]:
         "safety_factor": scene.safety_factor,
         "measurement_delay": Quantity(scene.physics.measurement_delay, (0, 0, 1, 0)),
         "timestep": Quantity(scene.physics.timestep, (0, 0, 1, 0)),
+        # how many calibration posts stand in the scene (``Scene.posts``): a step whose
+        # path they would block can be left out without them
+        "posts": len(scene.posts),
     }
     return {
         "scene": Namespace("scene", scene_ns),
