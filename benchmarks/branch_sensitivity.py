@@ -20,7 +20,7 @@ compiled (element by element for a list). A step may only be changed if it has n
 before the branch point, nor is the step being entered there.
 
 Printed per branch: outcome, final state, simulated time, the ground-truth knot at the
-end (surgical backends), the largest true tension, and per step after the branch point
+end and its centre in the world frame [mm] (surgical backends), the largest true tension, and per step after the branch point
 its ground-truth knot at the step's end and the stitcher's and grasper's tool-tip
 travel (ground truth: evaluation only; skills never read it). No trace is written; to
 look closer, change the procedure and run the variant straight.
@@ -258,6 +258,12 @@ class BranchRecorder(Recorder):
         self._current = (record.dest.rsplit("/", 1)[-1], t, tips)
 
 
+def _centre_mm(knot: Any) -> list[float] | None:
+    """The summary's knot centre in the world frame [mm], or None (no knot)."""
+    centre = knot.get("centre") if isinstance(knot, dict) else None
+    return None if centre is None else [round(1e3 * float(c), 1) for c in centre]
+
+
 def _knot(truth: Mapping[str, Any]) -> str | None:
     """The ground-truth thread's knot type (None: no thread, or a degenerate one)."""
     from suture_engine.suture.topology import InvalidCenterline, classify_knot
@@ -355,6 +361,7 @@ def run_branches(
             "outcome": summary.outcome, "final_state": summary.final_state,
             "sim_time_s": round(summary.sim_time_s, 3), "ticks": summary.ticks,
             "knot": first_knot.get("type") if isinstance(first_knot, dict) else None,
+            "knot_centre_mm": _centre_mm(first_knot),
             "max_tension_N": summary.max_tension_N,
             "last_fault": summary.last_fault,
             "peak_true_tension_N": round(recorder.peak_true_N, 3),
@@ -386,7 +393,9 @@ def format_results(results: Sequence[Mapping[str, Any]]) -> str:
             continue
         lines.append(
             f"{r['variant']}: {r['outcome']} ({r['final_state']}), "
-            f"{r['sim_time_s']:.1f} s simulated, knot {r['knot']}, "
+            f"{r['sim_time_s']:.1f} s simulated, knot {r['knot']}"
+            + (f" at {tuple(r['knot_centre_mm'])} mm" if r.get("knot_centre_mm") else "")
+            + ", "
             f"true peak {r['peak_true_tension_N']:.2f} N, branched at {r['branch_s']:.2f} s"
         )
         fault = r.get("last_fault")

@@ -178,3 +178,17 @@ def test_the_per_step_knot_is_the_threads_topology() -> None:
     assert bs._knot({"centerline": line}) == "trefoil"
     assert bs._knot({"centerline": line[:, [0, 1]] * [1.0, 0.0]}) is None  # degenerate
     assert bs._knot({}) is None  # the robots alone: no thread
+
+
+def test_a_branchs_knot_centre_is_reported_in_millimetres() -> None:
+    knot = {"type": "trefoil", "centre": [0.0024, -0.02294, 0.0027]}
+    assert bs._centre_mm(knot) == [2.4, -22.9, 2.7]
+    assert bs._centre_mm({"type": "unknot", "centre": None}) is None
+    assert bs._centre_mm(None) is None  # the robots alone: no knot entry
+    row = {"variant": "v", "outcome": "succeeded", "final_state": "tied", "sim_time_s": 80.0,
+           "knot": "trefoil", "knot_centre_mm": [2.4, -22.9, 2.7], "peak_true_tension_N": 1.0,
+           "branch_s": 50.0, "steps": []}  # fmt: skip
+    assert "knot trefoil at (2.4, -22.9, 2.7) mm, true peak" in bs.format_results([row])
+    assert "knot unknot, true peak" in bs.format_results(
+        [{**row, "knot": "unknot", "knot_centre_mm": None}]
+    )
