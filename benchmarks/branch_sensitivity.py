@@ -20,9 +20,10 @@ compiled (element by element for a list). A step may only be changed if it has n
 before the branch point, nor is the step being entered there.
 
 Printed per branch: outcome, final state, simulated time, the ground-truth knot at the
-end and its centre in the world frame [mm] (surgical backends), the largest true tension, and per step after the branch point
-its ground-truth knot at the step's end and the stitcher's and grasper's tool-tip
-travel (ground truth: evaluation only; skills never read it). No trace is written; to
+end and its centre in the world frame [mm] (surgical backends), the largest true
+tension, and per step after the branch point its ground-truth knot at the step's end
+and the stitcher's and grasper's tool-tip travel (ground truth: evaluation only; skills
+never read it). No trace is written; to
 look closer, change the procedure and run the variant straight.
 
 POSIX only (``os.fork``); the backend must run in-process (PyBullet ``DIRECT``).
