@@ -34,6 +34,15 @@ Usage::
         --at mirrored-knot.extend-hook [--set NAME=VALUE] \\
         --variant "h28: mirrored-knot.over-hook.height=28 mm" \\
         [--variant ...] [--backend NAME] [--max-time 230] [--workers 2] [--json FILE]
+
+A run of ``benchmarks/knot_success.py``'s perturbed sweep is branched with
+``--sweep-run ALG:RUN`` (its seed and its draw of base error, friction and stiffness;
+``--sweep-base-seed`` as that sweep's ``--base-seed``), the sweep's procedure and its
+``--set`` values, and ``--backend``::
+
+    python benchmarks/branch_sensitivity.py procedures/square-knot.yaml \\
+        --set algorithm=3 --set register=true --backend pybullet-surgical-stitched \\
+        --sweep-run 3:3 --at mirrored-knot.clear-jaws --variant "..."
 """
 
 from __future__ import annotations
@@ -285,9 +294,12 @@ def run_branches(
     backend: str | None = None,
     max_time_s: float = 300.0,
     workers: int = 1,
+    backend_options: Mapping[str, Any] | None = None,
 ) -> list[dict[str, Any]]:
     """Run ``procedure`` to the first tick of step ``at``; branch into the procedure as
     written and each variant; return one result per branch (as-written first).
+    ``backend_options`` go to the backend's constructor (e.g. a sweep run's perturbation:
+    :func:`sweep_run`).
 
     Raises:
         VariantError: a variant that cannot be applied (checked before the run starts,
@@ -305,7 +317,7 @@ def run_branches(
     for v in variants:  # unknown steps, fields and values, before the long prefix;
         # the step entered at the branch point has started there: it cannot change
         apply_variant(dict(plan.steps), v, {at})
-    be = registry.create(backend or proc.backend or "pybullet")
+    be = registry.create(backend or proc.backend or "pybullet", **dict(backend_options or {}))
     scene = proc.scene
     recorder = BranchRecorder(be)
     out_dir = Path(tempfile.mkdtemp(prefix="branches-"))
@@ -385,6 +397,42 @@ def run_branches(
     return results
 
 
+def sweep_run(spec: str, backend: str, base_seed: int = 0) -> tuple[int, dict[str, Any]]:
+    """The seed and backend options of run ``RUN`` of algorithm ``ALG`` (``spec`` is
+    ``"ALG:RUN"``) in ``benchmarks/knot_success.py``'s perturbed sweep with ``base_seed``
+    on ``backend``: branching from it starts where that sweep's run does, bit for bit.
+    Give the sweep's procedure and ``--set`` values as well (``--set algorithm=ALG``).
+
+    Raises:
+        VariantError: ``spec`` is not ``ALG:RUN`` with two non-negative integers.
+    """
+    m = re.fullmatch(r"\s*(\d+)\s*:\s*(\d+)\s*", spec)
+    if m is None:
+        raise VariantError(spec, "--sweep-run: expected ALG:RUN, e.g. 3:6")
+    alg, run = int(m.group(1)), int(m.group(2))
+    ks = _knot_success()
+    jobs = ks.make_jobs(
+        [alg], run + 1, base_seed=base_seed, backend=backend, out=Path("unused"),
+        max_time_s=0.0, perturb=True, accepted=ks.accepted_options(backend),
+    )  # fmt: skip
+    return jobs[run].seed, dict(jobs[run].options)
+
+
+def _knot_success() -> Any:
+    """``benchmarks/knot_success.py`` as a module (the sweep's draws are defined there)."""
+    import importlib.util
+
+    name = "_knot_success_for_branches"
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name("knot_success.py"))
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
 def format_results(results: Sequence[Mapping[str, Any]]) -> str:
     """The printed table: one line per branch, then its steps after the branch point."""
     lines = []
@@ -421,12 +469,24 @@ def main(argv: Sequence[str]) -> int:
     ap.add_argument("--max-time", type=float, default=300.0)
     ap.add_argument("--workers", type=int, default=1, help="branches run at once")
     ap.add_argument("--json", type=Path, default=None, help="also write the results here")
+    ap.add_argument(
+        "--sweep-run", default=None, metavar="ALG:RUN",
+        help="start as run RUN of algorithm ALG of knot_success.py's perturbed sweep does "
+        "(its seed and perturbation; --seed is then ignored; needs --backend)",
+    )  # fmt: skip
+    ap.add_argument("--sweep-base-seed", type=int, default=0, help="that sweep's --base-seed")
     args = ap.parse_args(argv)
     try:
         variants = [parse_variant(v) for v in args.variant]
+        seed, options = args.seed, {}
+        if args.sweep_run is not None:
+            if args.backend is None:
+                raise VariantError(args.sweep_run, "--sweep-run needs --backend")
+            seed, options = sweep_run(args.sweep_run, args.backend, args.sweep_base_seed)
         results = run_branches(
-            args.procedure, at=args.at, variants=variants, seed=args.seed, sets=args.sets,
+            args.procedure, at=args.at, variants=variants, seed=seed, sets=args.sets,
             backend=args.backend, max_time_s=args.max_time, workers=max(1, args.workers),
+            backend_options=options,
         )  # fmt: skip
     except (SutureError, RuntimeError) as exc:
         print(f"error: {exc}", file=sys.stderr)

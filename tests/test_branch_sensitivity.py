@@ -93,18 +93,14 @@ def test_the_unchanged_branch_ends_as_a_straight_run_does(
 
 
 def test_a_changed_step_moves_as_changed(branches: list[dict]) -> None:  # type: ignore[type-arg]
-    def move_2(result: dict) -> float:  # type: ignore[type-arg]
-        (step,) = [s for s in result["steps"] if s["step"] == "move-2"]
-        return float(step["travel_mm"]["endobot_1"])
-
     unchanged, up = branches[0], branches[1]
     assert up["variant"] == "up" and up["outcome"] == "succeeded"
     assert up["changes"] == [
         {"step": "move-2", "field": "target", "value": [0.0, 0.0, 0.005], "add": True}
     ]
     # true tool-tip travel against the commanded offsets (0.5 mm arrival tolerance)
-    assert move_2(unchanged) == pytest.approx(10.0, abs=0.6)
-    assert move_2(up) == pytest.approx(math.hypot(10.0, 5.0), abs=0.6)
+    assert move_2_travel(unchanged) == pytest.approx(10.0, abs=0.6)
+    assert move_2_travel(up) == pytest.approx(math.hypot(10.0, 5.0), abs=0.6)
     # the first move is shared: it ran once, before the branch
     assert up["branch_s"] == unchanged["branch_s"]
 
@@ -192,3 +188,51 @@ def test_a_branchs_knot_centre_is_reported_in_millimetres() -> None:
     assert "knot unknot, true peak" in bs.format_results(
         [{**row, "knot": "unknot", "knot_centre_mm": None}]
     )
+
+
+def test_a_branch_from_a_sweeps_run_starts_as_that_run(procedure: Path, tmp_path: Path) -> None:
+    from suture_engine.runtime.run import run_procedure
+
+    ks = load_benchmark("knot_success")
+    seed, options = bs.sweep_run("2:5", "pybullet")
+    # the run as the sweep lists it (20 runs: the draw does not depend on the sweep's size)
+    job = ks.make_jobs(
+        [2], 20, base_seed=0, backend="pybullet", out=tmp_path, max_time_s=20.0, perturb=True,
+        accepted=ks.accepted_options("pybullet"),
+    )[5]  # fmt: skip
+    assert (seed, options) == (job.seed, job.options)
+    assert set(options) >= {"base_error", "friction_scale"}  # the robots alone take these
+    (unchanged,) = bs.run_branches(
+        procedure, at="hold-1", variants=[], seed=seed, backend="pybullet", max_time_s=20.0,
+        backend_options=options,
+    )  # fmt: skip
+    straight = run_procedure(
+        procedure, backend="pybullet", seed=seed, out=tmp_path / "straight", max_time_s=20.0,
+        backend_options=options,
+    )  # fmt: skip
+    assert unchanged["ticks"] == straight.summary.ticks
+    assert unchanged["max_tension_N"] == straight.summary.max_tension_N  # to the bit
+
+
+def move_2_travel(result: dict) -> float:  # type: ignore[type-arg]
+    (step,) = [s for s in result["steps"] if s["step"] == "move-2"]
+    return float(step["travel_mm"]["endobot_1"])
+
+
+def test_backend_options_reach_the_branches_backend(
+    procedure: Path,
+    branches: list[dict],  # type: ignore[type-arg]
+) -> None:
+    (stiff,) = bs.run_branches(
+        procedure, at="hold-1", variants=[], seed=3, backend="pybullet", max_time_s=20.0,
+        backend_options={"friction_scale": 1.3},
+    )  # fmt: skip
+    # 30 % more joint friction: the same 10 mm move ends a little shorter (true tool tips)
+    assert move_2_travel(branches[0]) == pytest.approx(10.0, abs=0.005)
+    assert move_2_travel(stiff) < 9.99
+
+
+@pytest.mark.parametrize("spec", ["3", "3:", "a:1", "3:-1", "3:1:2"])
+def test_a_malformed_sweep_run_is_refused(spec: str) -> None:
+    with pytest.raises(bs.VariantError, match="expected ALG:RUN"):
+        bs.sweep_run(spec, "pybullet")
