@@ -84,6 +84,16 @@ class VariantError(SutureError):
         self.variant = variant
 
 
+class SweepRunError(SutureError):
+    """A ``--sweep-run`` that names no run of the sweep: names it and what was expected."""
+
+    code = "bad-sweep-run"
+
+    def __init__(self, spec: str, message: str) -> None:
+        super().__init__(f"--sweep-run {spec!r}: {message}")
+        self.spec = spec
+
+
 @dataclasses.dataclass(frozen=True)
 class Change:
     """One change of a variant: ``step``'s skill parameter ``field`` set to (or, with
@@ -404,11 +414,11 @@ def sweep_run(spec: str, backend: str, base_seed: int = 0) -> tuple[int, dict[st
     Give the sweep's procedure and ``--set`` values as well (``--set algorithm=ALG``).
 
     Raises:
-        VariantError: ``spec`` is not ``ALG:RUN`` with two non-negative integers.
+        SweepRunError: ``spec`` is not ``ALG:RUN`` with two non-negative integers.
     """
     m = re.fullmatch(r"\s*(\d+)\s*:\s*(\d+)\s*", spec)
     if m is None:
-        raise VariantError(spec, "--sweep-run: expected ALG:RUN, e.g. 3:6")
+        raise SweepRunError(spec, "expected ALG:RUN, e.g. 3:6")
     alg, run = int(m.group(1)), int(m.group(2))
     ks = _knot_success()
     jobs = ks.make_jobs(
@@ -481,7 +491,7 @@ def main(argv: Sequence[str]) -> int:
         seed, options = args.seed, {}
         if args.sweep_run is not None:
             if args.backend is None:
-                raise VariantError(args.sweep_run, "--sweep-run needs --backend")
+                raise SweepRunError(args.sweep_run, "needs --backend (the sweep's)")
             seed, options = sweep_run(args.sweep_run, args.backend, args.sweep_base_seed)
         results = run_branches(
             args.procedure, at=args.at, variants=variants, seed=seed, sets=args.sets,

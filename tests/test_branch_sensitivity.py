@@ -233,6 +233,13 @@ def test_backend_options_reach_the_branches_backend(
 
 
 @pytest.mark.parametrize("spec", ["3", "3:", "a:1", "3:-1", "3:1:2"])
-def test_a_malformed_sweep_run_is_refused(spec: str) -> None:
-    with pytest.raises(bs.VariantError, match="expected ALG:RUN"):
+def test_a_malformed_sweep_run_is_refused(
+    spec: str, procedure: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    with pytest.raises(bs.SweepRunError, match="expected ALG:RUN"):
         bs.sweep_run(spec, "pybullet")
+    argv = [str(procedure), "--at", "hold-1", "--backend", "pybullet", "--sweep-run", spec]
+    assert bs.main(argv) == 2
+    assert f"error: --sweep-run {spec!r}: expected ALG:RUN" in capsys.readouterr().err
+    assert bs.main([*argv[:3], "--sweep-run", "3:1"]) == 2  # no --backend
+    assert "error: --sweep-run '3:1': needs --backend" in capsys.readouterr().err
