@@ -911,3 +911,23 @@ def test_algorithm_3_ties_a_square_knot_with_the_arm_turned_along_the_tail(
     the square, under the tension limit (read from the trace's ground truth)."""
     summary, _ = _alg3_square_knot(tmp_path, seed)
     _assert_square(summary)
+
+
+def test_the_aligned_mirrored_tighten_stops_at_a_lower_guard() -> None:
+    """The mirrored throw with ``align_mirror`` tightens to 0.3 N (0.5 N drew a pinch of
+    17.09 N true on a registered perturbed run, docs/status.md); the first throw, the
+    unaligned mirrored throw, the unmirrored second throw and the double throw keep theirs."""
+    from suture_engine.runtime.plan import compile_procedure
+
+    second = {"second": True, "mirror": True, "stitch": False}
+    cases = [
+        ({**second, "align_mirror": True}, 0.3),
+        ({**second, "align_mirror": False}, 0.5),
+        ({"second": True, "stitch": False, "align_mirror": True}, 0.5),
+        ({"stitch": False}, 0.5),
+        ({"stitch": False, "turns": 2}, 1.5),
+    ]
+    for params, guard in cases:
+        proc: Any = load_procedure(PROC, params=params)
+        assert compile_procedure(proc).steps["tighten"].enabled
+        assert proc.states["tighten"].params.until_tension == pytest.approx(guard), params
