@@ -429,18 +429,14 @@ def sweep_run(spec: str, backend: str, base_seed: int = 0) -> tuple[int, dict[st
 
 
 def _knot_success() -> Any:
-    """``benchmarks/knot_success.py`` as a module (the sweep's draws are defined there)."""
-    import importlib.util
+    """``benchmarks/knot_success.py`` (the sweep's draws are defined there), imported from
+    this script's own folder."""
+    here = str(Path(__file__).resolve().parent)
+    if here not in sys.path:
+        sys.path.append(here)
+    import knot_success
 
-    name = "_knot_success_for_branches"
-    if name in sys.modules:
-        return sys.modules[name]
-    spec = importlib.util.spec_from_file_location(name, Path(__file__).with_name("knot_success.py"))
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
-    spec.loader.exec_module(module)
-    return module
+    return knot_success
 
 
 def format_results(results: Sequence[Mapping[str, Any]]) -> str:
