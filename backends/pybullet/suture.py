@@ -48,6 +48,7 @@ from suture_engine.errors import SutureError
 
 __all__ = [
     "PHYSICS_RATE",
+    "CapsuleFrame",
     "InvalidSutureParams",
     "Suture",
     "SutureContact",
@@ -69,6 +70,38 @@ _NEEDLE_REAL_MASS = 5e-5
 
 FloatArray = NDArray[np.float64]
 Vec3 = tuple[float, float, float]
+Quat = tuple[float, float, float, float]
+
+
+class CapsuleFrame(NamedTuple):
+    """The thread's capsule poses as the simulator gives them, read once per step.
+
+    Each capsule's unit axis (tail to needle) is its orientation's third matrix column
+    (``p.getMatrixFromQuaternion``), computed on first use and kept: most steps read the
+    axes of the few capsules near the tissue only.
+
+    Attributes:
+        positions: each capsule's centre, world frame [m].
+        orientations: each capsule's quaternion (x, y, z, w).
+        axis_cache: the axes computed so far (None: not yet).
+    """
+
+    positions: list[Vec3]
+    orientations: list[Quat]
+    axis_cache: list[Vec3 | None]
+
+    def axis(self, i: int) -> Vec3:
+        """Capsule ``i``'s unit axis, tail to needle [-]."""
+        axis = self.axis_cache[i]
+        if axis is None:
+            import pybullet as p
+
+            axis = self.axis_cache[i] = p.getMatrixFromQuaternion(self.orientations[i])[2::3]
+        return axis
+
+    def axes(self) -> list[Vec3]:
+        """Every capsule's unit axis, tail to needle [-]."""
+        return [self.axis(i) for i in range(len(self.positions))]
 
 
 class InvalidSutureParams(SutureError):
@@ -358,9 +391,9 @@ class Suture:
     needle_body: int = -1
     _needle_link: int = -1
     _lift: float = 0.0
-    _step_poses: tuple[list[Vec3], list[Vec3]] | None = None
+    _step_poses: CapsuleFrame | None = None
     _settled: bool = False
-    _frame: tuple[list[Vec3], list[Vec3]] | None = None
+    _frame: CapsuleFrame | None = None
 
     @classmethod
     def create(cls, client: int, path: Any, params: SutureParams | None = None) -> Suture:
@@ -524,13 +557,12 @@ class Suture:
         if frame is None:
             return
         c = self.client
-        positions, axes = frame
         if self._lift > 0.0:
             lift = [0.0, 0.0, self._lift]
-            for b, pos in zip(self.bodies, positions, strict=True):
+            for b, pos in zip(self.bodies, frame.positions, strict=True):
                 p.applyExternalForce(b, -1, lift, pos, p.WORLD_FRAME, physicsClientId=c)
         if stiff:
-            self._bend(np.array(axes))
+            self._bend(np.array(frame.axes()))
 
     def stepped(self) -> None:
         """Say that a physics step has just run (call it right after ``stepSimulation``).
@@ -541,29 +573,25 @@ class Suture:
         self._settled = True
         self._frame = None
 
-    def _read_frame(self) -> tuple[list[Vec3], list[Vec3]]:
-        """Each capsule's centre [m] and unit axis (tail to needle), as the simulator gives
-        them; read once per step after :meth:`stepped`."""
+    def _read_frame(self) -> CapsuleFrame:
+        """Each capsule's centre [m] and orientation (its unit axis on demand), as the
+        simulator gives them; read once per step after :meth:`stepped`."""
         import pybullet as p
 
         frame = self._frame
         if frame is not None and self._settled:
             return frame
         c = self.client
-        positions = []
-        axes = []
-        for b in self.bodies:
-            pos, orn = p.getBasePositionAndOrientation(b, physicsClientId=c)
-            positions.append(pos)
-            axes.append(p.getMatrixFromQuaternion(orn)[2::3])
-        frame = (positions, axes)
+        pose = p.getBasePositionAndOrientation
+        poses = [pose(b, physicsClientId=c) for b in self.bodies]
+        frame = CapsuleFrame([x for x, _ in poses], [q for _, q in poses], [None] * len(poses))
         if self._settled:
             self._frame = frame
         return frame
 
-    def take_step_poses(self) -> tuple[list[Vec3], list[Vec3]] | None:
-        """The capsules' centres [m] and unit axes that :meth:`pre_step` read this step
-        (no body has moved since), handed over once; None when it read none."""
+    def take_step_poses(self) -> CapsuleFrame | None:
+        """The capsules' poses that :meth:`pre_step` read this step (no body has moved
+        since), handed over once; None when it read none."""
         poses, self._step_poses = self._step_poses, None
         return poses
 
@@ -583,8 +611,8 @@ class Suture:
     # ---- ground truth (evaluation only) -------------------------------------------------
 
     def _poses(self) -> tuple[FloatArray, FloatArray]:
-        positions, axes = self._read_frame()
-        return np.array(positions, dtype=float), np.array(axes, dtype=float)
+        frame = self._read_frame()
+        return np.array(frame.positions, dtype=float), np.array(frame.axes(), dtype=float)
 
     def centerline(self) -> FloatArray:
         """The thread's centerline, tail to needle (ground truth).
@@ -626,14 +654,15 @@ class Suture:
         """
         import pybullet as p
 
-        pos = np.array(self._read_frame()[0], dtype=float)
-        u = np.diff(pos, axis=0)
-        u /= np.linalg.norm(u, axis=1, keepdims=True)
-        force = np.array(
-            [p.getConstraintState(c, physicsClientId=self.client)[:3] for c in self.links]
-        )
+        pos = np.array(self._read_frame().positions, dtype=float)
+        # np.diff, np.linalg.norm(axis=1) and np.clip(x, 0, None) by the ufunc calls they
+        # make (the same bits without their Python overhead)
+        u = pos[1:] - pos[:-1]
+        u /= np.sqrt(np.add.reduce(u * u, axis=1, keepdims=True))
+        state, client = p.getConstraintState, self.client
+        force = np.array([state(c, physicsClientId=client)[:3] for c in self.links])
         # PyBullet reports the joint force acting on the child (capsule i + 1).
-        axial: FloatArray = np.clip(-row_dot(force, u), 0.0, None)
+        axial: FloatArray = np.maximum(-row_dot(force, u), 0.0)
         return axial
 
     def contacts(self) -> list[SutureContact]:

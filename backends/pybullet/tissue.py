@@ -395,7 +395,7 @@ class Tissue:
         read = sut.take_step_poses()
         for i in window:
             if read is not None:
-                pos_t[i], axis_t[i] = read[0][i], read[1][i]
+                pos_t[i], axis_t[i] = read.positions[i], read.axis(i)
             else:
                 x, q = p.getBasePositionAndOrientation(sut.bodies[i], physicsClientId=c)
                 pos_t[i], axis_t[i] = x, p.getMatrixFromQuaternion(q)[2::3]
