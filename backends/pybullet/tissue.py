@@ -350,8 +350,9 @@ class Tissue:
         """The unit tangent of the channel's segment nearest each point in ``x`` [m]."""
         _, _, a, u, uu = self._channel_geometry()
         t = np.clip(row_dot(x[:, None, :] - a[None], u) / uu, 0.0, 1.0)
-        q = a[None] + t[..., None] * u[None]
-        k = np.argmin(np.linalg.norm(q - x[:, None, :], axis=2), axis=1)
+        d = a[None] + t[..., None] * u[None] - x[:, None, :]
+        # np.linalg.norm(d, axis=2) by the ufunc calls it makes (the same bits)
+        k = np.sqrt(np.add.reduce(d * d, axis=2)).argmin(axis=1)
         out: FloatArray = u[k] / np.sqrt(uu[k])[:, None]
         return out
 
@@ -413,7 +414,7 @@ class Tissue:
         entry point, and their distance (sums of products in order, as numpy's 3-vector
         ``@`` and ``np.linalg.norm`` take them, so the values are theirs to the bit)."""
         seg = 2 * h
-        e0, e1, e2 = (float(v) for v in self.channel[0])
+        e0, e1, e2 = self.channel[0].tolist()
         n = len(pos_t)
         if self._sigma is None:
             window = range(n)
@@ -482,15 +483,13 @@ class Tissue:
         self._passing = passing
         self.inside = inside
         # Friction the anchors applied in the last step, along the channel (4.5, static part).
-        tangent: dict[int, FloatArray] = {}
         tan_t: dict[int, Vec3] = {}
         if inside:
-            tan_in = self._tangents(pos[inside])
-            tangent = dict(zip(inside, tan_in, strict=True))
-            tan_t = dict(zip(inside, map(tuple, tan_in.tolist()), strict=True))
+            tan = self._tangents(pos[inside])  # row k: capsule inside[k]
+            tan_t = dict(zip(inside, map(tuple, tan.tolist()), strict=True))
         static = 0.0
         for i, cons in list(self._anchors.items()):
-            if i in tangent:
+            if i in tan_t:
                 f0, f1, f2 = p.getConstraintState(cons, physicsClientId=c)[:3]
                 t0, t1, t2 = tan_t[i]
                 static -= f0 * t0 + f1 * t1 + f2 * t2
@@ -502,7 +501,6 @@ class Tissue:
             return
         vel_t = [p.getBaseVelocity(sut.bodies[i], physicsClientId=c)[0] for i in inside]
         vel = np.array(vel_t)
-        tan = np.array([tangent[i] for i in inside])
         axial = row_dot(vel, tan)
         axial_t = axial.tolist()
         l_dot = float(axial.sum() / len(axial))  # the mean, as np.mean computes it
@@ -538,6 +536,8 @@ class Tissue:
         # the stitch is made (while the needle is in the tissue it leads the thread), and
         # taken up over HOLE_RAMP [s] so that the switch does not jerk the thread.
         touched = set(idx.tolist())
+        force_t = force_sum.tolist()
+        torque_t = torque_sum.tolist()
         if self.exited:
             self._hole_gain = min(1.0, self._hole_gain + dt / HOLE_RAMP)
             gain = self._hole_gain * self.k_hole
@@ -545,11 +545,11 @@ class Tissue:
                 held = _hole_pull(hole.tolist(), near, pos_t, axis_t, h, gain)
                 if held is not None:
                     cap_i, f, tq = held
-                    force_sum[cap_i] += f
-                    torque_sum[cap_i] += tq
+                    # added to the capsule's sums as floats (numpy's row += adds the same)
+                    fs, ts = force_t[cap_i], torque_t[cap_i]
+                    force_t[cap_i] = [fs[0] + f[0], fs[1] + f[1], fs[2] + f[2]]
+                    torque_t[cap_i] = [ts[0] + tq[0], ts[1] + tq[1], ts[2] + tq[2]]
                     touched.add(cap_i)
-        force_t = force_sum.tolist()
-        torque_t = torque_sum.tolist()
         for row, i in enumerate(inside):
             xi, ai = pos_t[i], axis_t[i]
             assert xi is not None and ai is not None  # inside the window by construction
@@ -579,7 +579,7 @@ class Tissue:
         # a hole's capsule just outside the channel (the thread leaving it) gets its pull too
         for i in sorted(touched):
             fi = force_t[i]
-            if i in tangent or (fi[0] == 0.0 and fi[1] == 0.0 and fi[2] == 0.0):
+            if i in tan_t or (fi[0] == 0.0 and fi[1] == 0.0 and fi[2] == 0.0):
                 continue
             xi, ai = pos_t[i], axis_t[i]
             assert xi is not None and ai is not None  # pulled capsules lie in the window
@@ -677,7 +677,8 @@ def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
     the same order (the same bits) at a fraction of its call overhead."""
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    shape = a.shape if a.shape == b.shape else np.broadcast_shapes(a.shape, b.shape)
+    out = np.empty(shape)
     out[..., 0] = a1 * b2 - a2 * b1
     out[..., 1] = a2 * b0 - a0 * b2
     out[..., 2] = a0 * b1 - a1 * b0
