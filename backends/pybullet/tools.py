@@ -150,6 +150,9 @@ class Tool:
     drive: int = -1
     drive_force: float = 50.0
     dt: float = 1e-3
+    _weights: dict[int, list[float]] = field(default_factory=dict, init=False, repr=False)
+    """Per part body, the force [N] that holds up its weight (read once: its mass never
+    changes)."""
 
     def _make_body(self, half_extents: Vec3, mass: float, rgba: list[float]) -> None:
         import pybullet as p
@@ -256,14 +259,16 @@ class Tool:
         import pybullet as p
 
         c = self.client
+        weights = self._weights
         for b in self._parts():
             if b < 0:
                 continue
-            mass = p.getDynamicsInfo(b, -1, physicsClientId=c)[0]
+            lift = weights.get(b)
+            if lift is None:
+                mass = p.getDynamicsInfo(b, -1, physicsClientId=c)[0]
+                lift = weights[b] = [0.0, 0.0, mass * 9.81]
             pos, _ = p.getBasePositionAndOrientation(b, physicsClientId=c)
-            p.applyExternalForce(
-                b, -1, [0.0, 0.0, mass * 9.81], pos, p.WORLD_FRAME, physicsClientId=c
-            )
+            p.applyExternalForce(b, -1, lift, pos, p.WORLD_FRAME, physicsClientId=c)
 
     def _attach(
         self, body: int, other: int, max_force: float | None = None, at: Vec3 | None = None
