@@ -29,7 +29,6 @@ import functools
 import json
 import math
 from collections.abc import Callable, Iterator, Mapping
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -515,7 +514,15 @@ class PyBulletBackend:
         if tool is None:
             return state
         if getattr(tool, "hook_body", -1) >= 0:
-            return replace(state, hook_load=round(tool.hook_load(), self.HOOK_LOAD_DIGITS))
+            load = round(tool.hook_load(), self.HOOK_LOAD_DIGITS)
+            return ToolState(
+                state.kind,
+                state.jaw_closed,
+                state.jaw2_closed,
+                state.hook_extension,
+                state.bend,
+                load,
+            )
         if getattr(tool, "needle_body", -1) >= 0 and not tool.holds_needle:
             return ToolState(state.kind, False, False, state.hook_extension, state.bend)
         if not (getattr(tool, "passing", False) or getattr(tool, "stalled", False)):
@@ -529,14 +536,15 @@ class PyBulletBackend:
         self._need()
         robots = {}
         for name, sim in self.robots.items():
-            m = sim.measure()
-            robots[name] = RobotMeasurement(
-                m.joints.values,
-                m.base_wrench.values,
-                self._tool_reading(name),
-                fault=not (m.joints.fresh and m.base_wrench.fresh),
+            joints, wrench = sim.measure()
+            # each reading's array is the sensor's fresh copy, read by nobody else: made
+            # read-only, it is what RobotMeasurement's constructor would copy and freeze
+            q, w = joints.values, wrench.values
+            q.flags.writeable = w.flags.writeable = False
+            robots[name] = RobotMeasurement.trusted(
+                q, w, self._tool_reading(name), not (joints.fresh and wrench.fresh)
             )
-        return Measurement(self.tick, self.tick * self.dt, robots)
+        return Measurement.trusted(self.tick, self.tick * self.dt, robots)
 
     def apply(self, command: Command) -> None:
         """Apply TORQUE commands; tool commands update the tool state."""
