@@ -385,6 +385,7 @@ def run_branches(
             "sim_time_s": round(summary.sim_time_s, 3), "ticks": summary.ticks,
             "knot": first_knot.get("type") if isinstance(first_knot, dict) else None,
             "knot_centre_mm": _centre_mm(first_knot),
+            "knot_lay": first_knot.get("lay") if isinstance(first_knot, dict) else None,
             "max_tension_N": summary.max_tension_N,
             "last_fault": summary.last_fault,
             "peak_true_tension_N": round(recorder.peak_true_N, 3),
@@ -449,6 +450,7 @@ def format_results(results: Sequence[Mapping[str, Any]]) -> str:
         lines.append(
             f"{r['variant']}: {r['outcome']} ({r['final_state']}), "
             f"{r['sim_time_s']:.1f} s simulated, knot {r['knot']}"
+            + (f" lying as {r['knot_lay']}" if r.get("knot_lay") else "")
             + (f" at {tuple(r['knot_centre_mm'])} mm" if r.get("knot_centre_mm") else "")
             + ", "
             f"true peak {r['peak_true_tension_N']:.2f} N, branched at {r['branch_s']:.2f} s"

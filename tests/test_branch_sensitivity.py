@@ -190,6 +190,16 @@ def test_a_branchs_knot_centre_is_reported_in_millimetres() -> None:
     )
 
 
+def test_a_branchs_knot_lay_is_reported() -> None:
+    """A square's lay (the summary's ``lay``: square, or two half hitches when its post
+    strand is not straight) is printed with its type; no lay, nothing printed."""
+    row = {"variant": "v", "outcome": "succeeded", "final_state": "tied", "sim_time_s": 80.0,
+           "knot": "square", "knot_lay": "half-hitches", "knot_centre_mm": [1.2, 7.8, 3.1],
+           "peak_true_tension_N": 1.0, "branch_s": 50.0, "steps": []}  # fmt: skip
+    assert "knot square lying as half-hitches at (1.2, 7.8, 3.1) mm" in bs.format_results([row])
+    assert "knot square at (1.2" in bs.format_results([{**row, "knot_lay": None}])
+
+
 def test_a_branch_from_a_sweeps_run_starts_as_that_run(procedure: Path, tmp_path: Path) -> None:
     from suture_engine.runtime.run import run_procedure
 
