@@ -931,38 +931,3 @@ def test_the_aligned_mirrored_tighten_stops_at_a_lower_guard() -> None:
         proc: Any = load_procedure(PROC, params=params)
         assert compile_procedure(proc).steps["tighten"].enabled
         assert proc.states["tighten"].params.until_tension == pytest.approx(guard), params
-
-
-def test_lay_square_draws_the_aligned_mirrored_tail_towards_the_entrys_side() -> None:
-    """``lay_square`` (square-knot.yaml, passed down to the mirrored throw): the aligned
-    mirrored ``tighten`` draws the tail towards the entry's side of the wound, world -y,
-    up to 40 mm to 0.6 N, instead of along +x to 0.3 N (where every square lay as two half
-    hitches); the first throw, the unaligned mirrored throw and the double throw keep
-    their moves. Off by default."""
-    from suture_engine.runtime.plan import compile_procedure
-
-    square = ROOT / "procedures" / "square-knot.yaml"
-    for lay, target, guard in ((True, (0.0, -40.0, 4.0), 0.6), (False, (25.0, 0.0, 4.0), 0.3)):
-        params = {"algorithm": 3} | ({"lay_square": True} if lay else {})
-        proc: Any = load_procedure(square, params=params)
-        steps = compile_procedure(proc).steps
-        assert steps["mirrored-knot.tighten"].enabled
-        mirrored = proc.states["mirrored-knot"].use.states["tighten"].params
-        assert np.asarray(mirrored.target) * 1e3 == pytest.approx(target)
-        assert mirrored.until_tension == pytest.approx(guard)
-        first = proc.states["simple-knot"].use.states["tighten"].params
-        assert np.asarray(first.target) * 1e3 == pytest.approx((25.0, 0.0, 4.0))
-        assert first.until_tension == pytest.approx(0.5)
-    entry = np.asarray(proc.scene.tissue.points["entry_2"])
-    exit_ = np.asarray(proc.scene.tissue.points["exit_2"])
-    assert (entry - exit_)[1] < 0  # world -y is the entry's side on the bench
-    second = {"second": True, "mirror": True, "stitch": False, "lay_square": True}
-    for params in (
-        {**second, "align_mirror": False},
-        {"stitch": False, "turns": 2, "lay_square": True},
-    ):
-        plain: Any = load_procedure(
-            PROC, params={k: v for k, v in params.items() if k != "lay_square"}
-        )
-        laid: Any = load_procedure(PROC, params=params)
-        assert laid.states["tighten"].params == plain.states["tighten"].params, params
