@@ -54,6 +54,7 @@ __all__ = [
     "SutureContact",
     "SutureGroundTruth",
     "SutureParams",
+    "capsule_axis",
     "configure_physics",
     "knotted_path",
     "straight_path",
@@ -73,12 +74,18 @@ Vec3 = tuple[float, float, float]
 Quat = tuple[float, float, float, float]
 
 
+def capsule_axis(orientation: Quat) -> Vec3:
+    """A capsule's unit axis, tail to needle [-]: its orientation's third matrix column."""
+    import pybullet as p
+
+    return p.getMatrixFromQuaternion(orientation)[2::3]  # type: ignore[no-any-return]
+
+
 class CapsuleFrame(NamedTuple):
     """The thread's capsule poses as the simulator gives them, read once per step.
 
-    Each capsule's unit axis (tail to needle) is its orientation's third matrix column
-    (``p.getMatrixFromQuaternion``), computed on first use and kept: most steps read the
-    axes of the few capsules near the tissue only.
+    Each capsule's unit axis (:func:`capsule_axis`) is computed on first use and kept:
+    most steps read the axes of the few capsules near the tissue only.
 
     Attributes:
         positions: each capsule's centre, world frame [m].
@@ -94,9 +101,7 @@ class CapsuleFrame(NamedTuple):
         """Capsule ``i``'s unit axis, tail to needle [-]."""
         axis = self.axis_cache[i]
         if axis is None:
-            import pybullet as p
-
-            axis = self.axis_cache[i] = p.getMatrixFromQuaternion(self.orientations[i])[2::3]
+            axis = self.axis_cache[i] = capsule_axis(self.orientations[i])
         return axis
 
     def axes(self) -> list[Vec3]:

@@ -44,6 +44,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 from numpy.typing import NDArray
 
+from backends.pybullet.suture import capsule_axis
 from suture_engine.arithmetic import row_dot, sin
 from suture_engine.errors import SutureError
 
@@ -399,7 +400,7 @@ class Tissue:
                 pos_t[i], axis_t[i] = read.positions[i], read.axis(i)
             else:
                 x, q = p.getBasePositionAndOrientation(sut.bodies[i], physicsClientId=c)
-                pos_t[i], axis_t[i] = x, p.getMatrixFromQuaternion(q)[2::3]
+                pos_t[i], axis_t[i] = x, capsule_axis(q)
         pos = np.full((n, 3), np.nan)
         axis = np.full((n, 3), np.nan)
         if len(window):
