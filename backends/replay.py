@@ -231,6 +231,10 @@ class ReplayBackend:
         follow are of the world after the cut; there is nothing to change, and no ground
         truth to give."""
 
+    def remove_posts(self) -> None:
+        """The recorded run's calibration posts were taken away here (``remove-posts``):
+        nothing to change."""
+
     def load_suture(self, entry: str, exit: str) -> None:
         """The recorded run loaded the next stitch's suture here (``load-suture``): as
         :meth:`cut_suture`, nothing to change.

@@ -45,6 +45,7 @@ BUILTIN_SKILLS: dict[str, str] = {
     "register": "skills.register:Register",
     "cut-suture": "skills.reload:CutSuture",
     "load-suture": "skills.reload:LoadSuture",
+    "remove-posts": "skills.remove_posts:RemovePosts",
     "wait-for-operator": "skills.wait_for_operator:WaitForOperator",
 }
 """Name -> ``module:Class`` of the skills shipped with the engine."""

@@ -614,6 +614,13 @@ def test_with_registration_the_mirrored_holder_goes_round_the_near_post() -> Non
     assert not steps["simple-knot.clear-post"].enabled
     plain = compile_procedure(load_procedure(square, params={"algorithm": 3})).steps
     assert not plain["mirrored-knot.clear-post"].enabled
+    # with the posts taken away after the registration the holder goes straight
+    lifted = compile_procedure(
+        load_procedure(square, params={"algorithm": 3, "register": True, "remove_posts": True})
+    ).steps
+    assert not lifted["mirrored-knot.clear-post"].enabled
+    assert lifted["register.remove-posts"].enabled
+    assert not steps["register.remove-posts"].enabled
     mirrored = proc.states["mirrored-knot"].use
     points = proc.scene.tissue.points
 

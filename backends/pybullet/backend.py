@@ -751,6 +751,26 @@ class PyBulletBackend:
         self.cut_threads.append(cut)
         return cut
 
+    def remove_posts(self) -> list[str]:
+        """Take the calibration posts out of the world: the assistant lifts the jig off
+        the bench once the bases are registered (``remove-posts``;
+        :func:`backends.pybullet.reload.remove_posts`).
+
+        Returns:
+            The names of the posts taken away.
+
+        Raises:
+            BackendError: no surgical scene, or no posts in play.
+        """
+        from backends.pybullet.reload import remove_posts
+
+        if self.scene is None:
+            raise BackendError(self.name, "no surgical scene: there are no posts to remove")
+        try:
+            return remove_posts(self.scene)
+        except SutureError as exc:
+            raise BackendError(self.name, str(exc)) from None
+
     def load_suture(self, entry: str, exit: str) -> None:
         """Load a new thread for the stitch from tissue point ``entry`` to ``exit``, in the
         backend's start state (``stitched``: the stitch made, the needle in the
