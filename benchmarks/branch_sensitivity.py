@@ -37,8 +37,8 @@ Usage::
 
 A run of ``benchmarks/knot_success.py``'s perturbed sweep is branched with
 ``--sweep-run ALG:RUN`` (its seed and its draw of base error, friction and stiffness;
-``--sweep-base-seed`` as that sweep's ``--base-seed``), the sweep's procedure and its
-``--set`` values, and ``--backend``::
+``--sweep-base-seed`` as that sweep's ``--base-seed``, ``--sweep-only`` as its
+``--only``), the sweep's procedure and its ``--set`` values, and ``--backend``::
 
     python benchmarks/branch_sensitivity.py procedures/square-knot.yaml \\
         --set algorithm=3 --set register=true --backend pybullet-surgical-stitched \\
@@ -408,23 +408,30 @@ def run_branches(
     return results
 
 
-def sweep_run(spec: str, backend: str, base_seed: int = 0) -> tuple[int, dict[str, Any]]:
+def sweep_run(
+    spec: str, backend: str, base_seed: int = 0, only: Sequence[str] | None = None
+) -> tuple[int, dict[str, Any]]:
     """The seed and backend options of run ``RUN`` of algorithm ``ALG`` (``spec`` is
     ``"ALG:RUN"``) in ``benchmarks/knot_success.py``'s perturbed sweep with ``base_seed``
     on ``backend``: branching from it starts where that sweep's run does, bit for bit.
     Give the sweep's procedure and ``--set`` values as well (``--set algorithm=ALG``).
+    ``only`` names the perturbations that sweep applied (its ``--only``: an ablation).
 
     Raises:
-        SweepRunError: ``spec`` is not ``ALG:RUN`` with two non-negative integers.
+        SweepRunError: ``spec`` is not ``ALG:RUN`` with two non-negative integers, or
+            ``only`` names an unknown perturbation.
     """
     m = re.fullmatch(r"\s*(\d+)\s*:\s*(\d+)\s*", spec)
     if m is None:
         raise SweepRunError(spec, "expected ALG:RUN, e.g. 3:6")
     alg, run = int(m.group(1)), int(m.group(2))
     ks = _knot_success()
+    unknown = sorted(set(only or ()) - set(ks.KINDS))
+    if unknown:
+        raise SweepRunError(spec, f"--sweep-only: unknown {unknown}; expected some of {sorted(ks.KINDS)}")
     jobs = ks.make_jobs(
         [alg], run + 1, base_seed=base_seed, backend=backend, out=Path("unused"),
-        max_time_s=0.0, perturb=True, accepted=ks.accepted_options(backend),
+        max_time_s=0.0, perturb=True, accepted=ks.accepted_options(backend), only=only,
     )  # fmt: skip
     return jobs[run].seed, dict(jobs[run].options)
 
@@ -483,6 +490,10 @@ def main(argv: Sequence[str]) -> int:
         "(its seed and perturbation; --seed is then ignored; needs --backend)",
     )  # fmt: skip
     ap.add_argument("--sweep-base-seed", type=int, default=0, help="that sweep's --base-seed")
+    ap.add_argument(
+        "--sweep-only", default=None, metavar="KINDS",
+        help="that sweep's --only (comma-separated from base,friction,stiffness)",
+    )  # fmt: skip
     args = ap.parse_args(argv)
     try:
         variants = [parse_variant(v) for v in args.variant]
@@ -490,7 +501,8 @@ def main(argv: Sequence[str]) -> int:
         if args.sweep_run is not None:
             if args.backend is None:
                 raise SweepRunError(args.sweep_run, "needs --backend (the sweep's)")
-            seed, options = sweep_run(args.sweep_run, args.backend, args.sweep_base_seed)
+            only = args.sweep_only.split(",") if args.sweep_only else None
+            seed, options = sweep_run(args.sweep_run, args.backend, args.sweep_base_seed, only)
         results = run_branches(
             args.procedure, at=args.at, variants=variants, seed=seed, sets=args.sets,
             backend=args.backend, max_time_s=args.max_time, workers=max(1, args.workers),

@@ -253,3 +253,22 @@ def test_a_malformed_sweep_run_is_refused(
     assert f"error: --sweep-run {spec!r}: expected ALG:RUN" in capsys.readouterr().err
     assert bs.main([*argv[:3], "--sweep-run", "3:1"]) == 2  # no --backend
     assert "error: --sweep-run '3:1': needs --backend" in capsys.readouterr().err
+
+
+def test_a_branch_from_an_ablation_run_keeps_only_its_perturbations(tmp_path: Path) -> None:
+    """``--sweep-only friction``: the run of the sweep with ``--only friction``, whose base
+    stays nominal and whose friction factor is the full sweep's draw."""
+    ks = load_benchmark("knot_success")
+    full_seed, full = bs.sweep_run("3:1", "pybullet-surgical-stitched")
+    seed, friction = bs.sweep_run("3:1", "pybullet-surgical-stitched", only=["friction"])
+    job = ks.make_jobs(
+        [3], 20, base_seed=0, backend="pybullet-surgical-stitched", out=tmp_path,
+        max_time_s=1.0, perturb=True, accepted=ks.accepted_options("pybullet-surgical-stitched"),
+        only=["friction"],
+    )[1]  # fmt: skip
+    assert (seed, friction) == (job.seed, job.options) and seed == full_seed
+    assert friction["friction_scale"] == full["friction_scale"] != 1.0
+    assert any(any(v) for v in full["base_error"].values())
+    assert not any(any(v) for v in friction.get("base_error", {}).values())
+    with pytest.raises(bs.SweepRunError, match="unknown"):
+        bs.sweep_run("3:1", "pybullet-surgical-stitched", only=["gravity"])
