@@ -428,7 +428,9 @@ def sweep_run(
     ks = _knot_success()
     unknown = sorted(set(only or ()) - set(ks.KINDS))
     if unknown:
-        raise SweepRunError(spec, f"--sweep-only: unknown {unknown}; expected some of {sorted(ks.KINDS)}")
+        raise SweepRunError(
+            spec, f"--sweep-only: unknown {unknown}; expected some of {sorted(ks.KINDS)}"
+        )
     jobs = ks.make_jobs(
         [alg], run + 1, base_seed=base_seed, backend=backend, out=Path("unused"),
         max_time_s=0.0, perturb=True, accepted=ks.accepted_options(backend), only=only,

@@ -288,7 +288,9 @@ def test_removed_posts_leave_the_world_once() -> None:
         assert be.remove_posts() == sorted(bodies)
         assert be.scene.posts == {}
         assert p.getNumBodies(physicsClientId=be.client) == count
-        others = [b for b in range(p.getNumBodies(physicsClientId=be.client)) if b not in bodies.values()]
+        others = [
+            b for b in range(p.getNumBodies(physicsClientId=be.client)) if b not in bodies.values()
+        ]
         for body in bodies.values():
             pos, _ = p.getBasePositionAndOrientation(body, physicsClientId=be.client)
             assert np.linalg.norm(pos) > 40.0

@@ -194,7 +194,8 @@ def remove_posts(scene: Scene) -> list[str]:
         raise SceneError("posts", None, ["calibration posts in play (removed once)"])
     names = sorted(scene.posts)
     for body in scene.posts.values():
-        p.resetBasePositionAndOrientation(body, PARKED, (0.0, 0.0, 0.0, 1.0), physicsClientId=scene.client)
+        p.resetBasePositionAndOrientation(
+            body, PARKED, (0.0, 0.0, 0.0, 1.0), physicsClientId=scene.client
+        )
     scene.posts = {}
     return names
-
