@@ -409,13 +409,14 @@ def run_branches(
 
 
 def sweep_run(
-    spec: str, backend: str, base_seed: int = 0, only: Sequence[str] | None = None
+    spec: str, backend: str, base_seed: int = 0, only: str | None = None
 ) -> tuple[int, dict[str, Any]]:
     """The seed and backend options of run ``RUN`` of algorithm ``ALG`` (``spec`` is
     ``"ALG:RUN"``) in ``benchmarks/knot_success.py``'s perturbed sweep with ``base_seed``
     on ``backend``: branching from it starts where that sweep's run does, bit for bit.
     Give the sweep's procedure and ``--set`` values as well (``--set algorithm=ALG``).
-    ``only`` names the perturbations that sweep applied (its ``--only``: an ablation).
+    ``only`` is that sweep's ``--only`` text (``"friction"``, ``"base,friction"``: an
+    ablation), None for the whole perturbation.
 
     Raises:
         SweepRunError: ``spec`` is not ``ALG:RUN`` with two non-negative integers, or
@@ -426,14 +427,13 @@ def sweep_run(
         raise SweepRunError(spec, "expected ALG:RUN, e.g. 3:6")
     alg, run = int(m.group(1)), int(m.group(2))
     ks = _knot_success()
-    unknown = sorted(set(only or ()) - set(ks.KINDS))
-    if unknown:
-        raise SweepRunError(
-            spec, f"--sweep-only: unknown {unknown}; expected some of {sorted(ks.KINDS)}"
-        )
+    try:
+        kinds = None if only is None else ks.parse_only(only)
+    except ValueError as exc:
+        raise SweepRunError(spec, f"--sweep-only: {exc}") from None
     jobs = ks.make_jobs(
         [alg], run + 1, base_seed=base_seed, backend=backend, out=Path("unused"),
-        max_time_s=0.0, perturb=True, accepted=ks.accepted_options(backend), only=only,
+        max_time_s=0.0, perturb=True, accepted=ks.accepted_options(backend), only=kinds,
     )  # fmt: skip
     return jobs[run].seed, dict(jobs[run].options)
 
@@ -503,8 +503,9 @@ def main(argv: Sequence[str]) -> int:
         if args.sweep_run is not None:
             if args.backend is None:
                 raise SweepRunError(args.sweep_run, "needs --backend (the sweep's)")
-            only = args.sweep_only.split(",") if args.sweep_only else None
-            seed, options = sweep_run(args.sweep_run, args.backend, args.sweep_base_seed, only)
+            seed, options = sweep_run(
+                args.sweep_run, args.backend, args.sweep_base_seed, args.sweep_only
+            )
         results = run_branches(
             args.procedure, at=args.at, variants=variants, seed=seed, sets=args.sets,
             backend=args.backend, max_time_s=args.max_time, workers=max(1, args.workers),

@@ -296,6 +296,16 @@ def make_jobs(
     return jobs
 
 
+def parse_only(text: str) -> list[str]:
+    """The perturbation kinds in ``text`` (``"base,friction"``), each a key of :data:`KINDS`.
+
+    Raises ``ValueError`` when none is given or one is unknown."""
+    kinds = [k.strip() for k in text.split(",") if k.strip()]
+    if not kinds or any(k not in KINDS for k in kinds):
+        raise ValueError(f"comma-separated from {','.join(KINDS)}; got {text!r}")
+    return kinds
+
+
 def parse_runs(text: str, seeds: int) -> set[int]:
     """The run numbers in ``text`` (``"1,2,5-9"``), each in ``range(seeds)``.
 
@@ -621,10 +631,12 @@ def main(argv: Sequence[str]) -> int:
     perturb = not args.no_perturb
     only = None
     if args.only is not None:
-        only = [k.strip() for k in args.only.split(",") if k.strip()]
-        if not only or any(k not in KINDS for k in only) or args.no_perturb:
-            ap.error(f"--only: comma-separated from {','.join(KINDS)}, without --no-perturb; "
-                     f"got {args.only!r}")  # fmt: skip
+        try:
+            only = parse_only(args.only)
+        except ValueError as exc:
+            ap.error(f"--only: {exc}")
+        if args.no_perturb:
+            ap.error(f"--only {args.only!r}: not with --no-perturb")
         applied = tuple(a for a in applied if a in {KINDS[k] for k in only})
         missing = tuple(m for m in missing if m in {KINDS[k] for k in only})
     if args.base_part != "all" and not perturb:

@@ -260,7 +260,7 @@ def test_a_branch_from_an_ablation_run_keeps_only_its_perturbations(tmp_path: Pa
     stays nominal and whose friction factor is the full sweep's draw."""
     ks = load_benchmark("knot_success")
     full_seed, full = bs.sweep_run("3:1", "pybullet-surgical-stitched")
-    seed, friction = bs.sweep_run("3:1", "pybullet-surgical-stitched", only=["friction"])
+    seed, friction = bs.sweep_run("3:1", "pybullet-surgical-stitched", only=" friction")
     job = ks.make_jobs(
         [3], 20, base_seed=0, backend="pybullet-surgical-stitched", out=tmp_path,
         max_time_s=1.0, perturb=True, accepted=ks.accepted_options("pybullet-surgical-stitched"),
@@ -270,5 +270,6 @@ def test_a_branch_from_an_ablation_run_keeps_only_its_perturbations(tmp_path: Pa
     assert friction["friction_scale"] == full["friction_scale"] != 1.0
     assert any(any(v) for v in full["base_error"].values())
     assert not any(any(v) for v in friction.get("base_error", {}).values())
-    with pytest.raises(bs.SweepRunError, match="unknown"):
-        bs.sweep_run("3:1", "pybullet-surgical-stitched", only=["gravity"])
+    for bad in ("gravity", "friction,gravity", ","):
+        with pytest.raises(bs.SweepRunError, match="--sweep-only: comma-separated from"):
+            bs.sweep_run("3:1", "pybullet-surgical-stitched", only=bad)

@@ -1,7 +1,6 @@
 """Cutting a suture and loading the next stitch's (an interrupted suture, one at a time):
 in the backend (``cut_suture``, ``load_suture``), through the skills ``cut-suture`` and
-``load-suture`` in a run, and the evaluation of the threads cut on the way. Also the
-calibration posts taken away once the bases are registered (``remove_posts``)."""
+``load-suture`` in a run, and the evaluation of the threads cut on the way."""
 
 from __future__ import annotations
 
@@ -265,40 +264,3 @@ def test_the_interrupted_suture_ties_three_square_knots_on_seed_12(tmp_path: Pat
     assert stitches["site"] == ["1", "2", "3"]
     assert stitches["spacing_mean_mm"] == pytest.approx(5.0, abs=0.25)
     assert summary.metrics["peak_true_tension_N"] < 0.5 * summary.tension_limit_N
-
-
-def test_removed_posts_leave_the_world_once() -> None:
-    """``remove_posts`` parks the calibration posts far from the bench: nothing of the
-    robots, tools or thread is near them any more, the body count is unchanged (ids kept),
-    and a second removal is refused with its reason."""
-    import pybullet as p
-
-    posts_model = load_procedure(SQUARE, params={"register": True}).scene
-    be = StitchedSurgicalPyBulletBackend()
-    try:
-        be.reset(posts_model, 0)
-        assert be.scene is not None
-        bodies = dict(be.scene.posts)
-        assert sorted(bodies) == sorted(posts_model.posts)
-        count = p.getNumBodies(physicsClientId=be.client)
-        for name, body in bodies.items():
-            pos, _ = p.getBasePositionAndOrientation(body, physicsClientId=be.client)
-            declared = np.asarray(posts_model.posts[name].position, float)
-            assert np.linalg.norm(np.asarray(pos)[:2] - declared[:2]) < 1e-6
-        assert be.remove_posts() == sorted(bodies)
-        assert be.scene.posts == {}
-        assert p.getNumBodies(physicsClientId=be.client) == count
-        others = [
-            b for b in range(p.getNumBodies(physicsClientId=be.client)) if b not in bodies.values()
-        ]
-        for body in bodies.values():
-            pos, _ = p.getBasePositionAndOrientation(body, physicsClientId=be.client)
-            assert np.linalg.norm(pos) > 40.0
-            for other in others:
-                near = p.getClosestPoints(body, other, 0.5, physicsClientId=be.client)
-                assert not near, (body, other)
-        _hold(be, 20)
-        with pytest.raises(BackendError, match="posts"):
-            be.remove_posts()
-    finally:
-        be.close()

@@ -424,3 +424,47 @@ def test_mounted_grasper_holds_the_thread_it_closes_on_and_releases_it() -> None
         assert np.asarray(grasper.pose()[0])[2] - after[2] > 0.02
     finally:
         scene.close()
+
+
+def test_removed_posts_leave_the_world_once() -> None:
+    """The backend's ``remove_posts`` (:func:`remove_posts` under it) parks the calibration
+    posts far from the bench: nothing of the robots, tools or thread is near them any more,
+    the body count is unchanged (ids kept), and a second removal is refused with its
+    reason."""
+    import pybullet as p
+
+    from backends.base import BackendError
+    from backends.pybullet.backend import StitchedSurgicalPyBulletBackend
+    from suture_engine.language.loader import load_procedure
+
+    square = ROOT / "procedures" / "square-knot.yaml"
+    posts_model = load_procedure(square, params={"register": True}).scene
+    be = StitchedSurgicalPyBulletBackend()
+    try:
+        be.reset(posts_model, 0)
+        assert be.scene is not None
+        bodies = dict(be.scene.posts)
+        assert sorted(bodies) == sorted(posts_model.posts)
+        count = p.getNumBodies(physicsClientId=be.client)
+        for name, body in bodies.items():
+            pos, _ = p.getBasePositionAndOrientation(body, physicsClientId=be.client)
+            declared = np.asarray(posts_model.posts[name].position, float)
+            assert np.linalg.norm(np.asarray(pos)[:2] - declared[:2]) < 1e-6
+        assert be.remove_posts() == sorted(bodies)
+        assert be.scene.posts == {}
+        assert p.getNumBodies(physicsClientId=be.client) == count
+        others = [
+            b for b in range(p.getNumBodies(physicsClientId=be.client)) if b not in bodies.values()
+        ]
+        for body in bodies.values():
+            pos, _ = p.getBasePositionAndOrientation(body, physicsClientId=be.client)
+            assert np.linalg.norm(pos) > 40.0
+            for other in others:
+                near = p.getClosestPoints(body, other, 0.5, physicsClientId=be.client)
+                assert not near, (body, other)
+        for _ in range(20):
+            be.step()
+        with pytest.raises(BackendError, match="posts"):
+            be.remove_posts()
+    finally:
+        be.close()

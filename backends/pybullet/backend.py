@@ -754,7 +754,7 @@ class PyBulletBackend:
     def remove_posts(self) -> list[str]:
         """Take the calibration posts out of the world: the assistant lifts the jig off
         the bench once the bases are registered (``remove-posts``;
-        :func:`backends.pybullet.reload.remove_posts`).
+        :func:`backends.pybullet.scene.remove_posts`).
 
         Returns:
             The names of the posts taken away.
@@ -762,7 +762,7 @@ class PyBulletBackend:
         Raises:
             BackendError: no surgical scene, or no posts in play.
         """
-        from backends.pybullet.reload import remove_posts
+        from backends.pybullet.scene import remove_posts
 
         if self.scene is None:
             raise BackendError(self.name, "no surgical scene: there are no posts to remove")

@@ -27,6 +27,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from backends.pybullet.scene import (
+    PARKED,
     Scene,
     SceneError,
     hanging_path,
@@ -38,14 +39,10 @@ from backends.pybullet.scene import (
 from backends.pybullet.suture import Suture
 from backends.pybullet.tools import Grasper, Stitcher
 
-__all__ = ["RELOAD_STARTS", "CutThread", "cut_thread", "load_thread", "remove_posts"]
+__all__ = ["RELOAD_STARTS", "CutThread", "cut_thread", "load_thread"]
 
 RELOAD_STARTS = ("stitched", "needle")
 """The start states a loaded thread can take (a held tail needs the assistant there)."""
-
-PARKED = (50.0, 50.0, -50.0)
-"""Where cut threads and their pads are parked, far from the scene [m]
-(:meth:`Suture.park`). They touch nothing there, each other included: one place serves."""
 
 
 class CutThread(NamedTuple):
@@ -171,31 +168,3 @@ def load_thread(
         if isinstance(tool, (Grasper, Stitcher)):
             tool.set_thread(suture)
     return suture
-
-
-def remove_posts(scene: Scene) -> list[str]:
-    """Take the scene's calibration posts out of play: the assistant lifts the calibration
-    jig off the bench once the robots are registered (``remove-posts``).
-
-    The posts' bodies stay in the world, parked at :data:`PARKED`, static and touching
-    nothing (as a cut thread's, for the same reason: a removed body's id would go to the
-    next new body). ``scene.posts`` is emptied, so a thread loaded later is not filtered
-    against them.
-
-    Returns:
-        The names of the posts taken away, sorted.
-
-    Raises:
-        SceneError: the scene has no posts in play (none declared, or already removed).
-    """
-    import pybullet as p
-
-    if not scene.posts:
-        raise SceneError("posts", None, ["calibration posts in play (removed once)"])
-    names = sorted(scene.posts)
-    for body in scene.posts.values():
-        p.resetBasePositionAndOrientation(
-            body, PARKED, (0.0, 0.0, 0.0, 1.0), physicsClientId=scene.client
-        )
-    scene.posts = {}
-    return names

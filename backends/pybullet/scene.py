@@ -49,6 +49,7 @@ __all__ = [
     "DEFAULT_SCENE",
     "DEFAULT_TAIL",
     "PAD_SIZE",
+    "PARKED",
     "START_STATES",
     "PullResult",
     "Scene",
@@ -59,6 +60,7 @@ __all__ = [
     "model_tissue",
     "needle_path",
     "pull_ends",
+    "remove_posts",
     "stitch_points",
     "stitched_path",
     "suture_params",
@@ -66,6 +68,11 @@ __all__ = [
     "tail_held_grip",
     "tail_held_joints",
 ]
+
+PARKED = (50.0, 50.0, -50.0)
+"""Where bodies taken out of play are parked, far from the scene [m]: cut threads and their
+pads (:meth:`Suture.park`), calibration posts (:func:`remove_posts`). Static, they touch
+nothing there, each other included: one place serves."""
 
 DEFAULT_SCENE: dict[str, Any] = {
     "tools": {"left": "grasper", "right": "grasper"},
@@ -898,6 +905,34 @@ def _make_posts(client: int, model: Any, ignore: Sequence[int]) -> dict[str, int
             p.setCollisionFilterPair(body, other, -1, -1, 0, physicsClientId=client)
         out[name] = body
     return out
+
+
+def remove_posts(scene: Scene) -> list[str]:
+    """Take the scene's calibration posts out of play: the assistant lifts the calibration
+    jig off the bench once the robots are registered (``remove-posts``).
+
+    The posts' bodies stay in the world, parked at :data:`PARKED`, static and touching
+    nothing (as a cut thread's, :func:`backends.pybullet.reload.cut_thread`, for the same
+    reason: a removed body's id would go to the next new body). ``scene.posts`` is
+    emptied, so a thread loaded later is not filtered against them.
+
+    Returns:
+        The names of the posts taken away, sorted.
+
+    Raises:
+        SceneError: the scene has no posts in play (none declared, or already removed).
+    """
+    import pybullet as p
+
+    if not scene.posts:
+        raise SceneError("posts", None, ["calibration posts in play (removed once)"])
+    names = sorted(scene.posts)
+    for body in scene.posts.values():
+        p.resetBasePositionAndOrientation(
+            body, PARKED, (0.0, 0.0, 0.0, 1.0), physicsClientId=scene.client
+        )
+    scene.posts = {}
+    return names
 
 
 class PullResult(NamedTuple):
