@@ -384,3 +384,13 @@ def test_the_true_peak_is_reported_apart_from_the_estimate(tmp_path: Path) -> No
     ks.write_csv(rows, path)
     back = ks.read_csv(path)
     assert ks.true_peaks(back) == {2: (5.23, 0, 6.38)}
+
+
+@pytest.mark.parametrize(
+    "bad", [["--wound-gap", "-1"], ["--wound-gap", "2.5", "--backend", "ideal"]]
+)
+def test_command_line_refuses_a_wound_gap_it_cannot_give(bad: list[str]) -> None:
+    """A negative width, or a backend without a tissue pad to part, is a usage error."""
+    with pytest.raises(SystemExit) as err:
+        ks.main(["--algorithms", "3", "--seeds", "1", *bad])
+    assert err.value.code == 2

@@ -468,3 +468,29 @@ def test_removed_posts_leave_the_world_once() -> None:
             be.remove_posts()
     finally:
         be.close()
+
+
+@pytest.mark.parametrize("gap", [None, 2.5e-3])
+def test_the_backends_wound_gap_parts_the_pads_halves(gap: float | None) -> None:
+    """The backend's ``wound_gap`` reaches the pad: its two halves stand that far apart
+    across the wound (PyBullet's own bounding boxes), 1 mm by default."""
+    import pybullet as p
+
+    from backends.pybullet.backend import StitchedSurgicalPyBulletBackend
+    from backends.pybullet.scene import WOUND_GAP
+    from suture_engine.language.loader import load_procedure
+
+    model = load_procedure(ROOT / "procedures" / "square-knot.yaml").scene
+    be = StitchedSurgicalPyBulletBackend(wound_gap=gap)
+    try:
+        be.reset(model, 0)
+        assert be.scene is not None and be.scene.tissue is not None
+        # the wound runs along x: the halves face each other across y
+        lo, hi = sorted(
+            (p.getAABB(b, physicsClientId=be.client) for b in be.scene.tissue.bodies),
+            key=lambda box: box[0][1],
+        )
+        width = hi[0][1] - lo[1][1]
+        assert width == pytest.approx(WOUND_GAP if gap is None else gap, abs=1e-6)
+    finally:
+        be.close()

@@ -157,6 +157,10 @@ class PyBulletBackend:
         suture_bending_stiffness: the thread's flexural rigidity EI [N*m^2] (surgical
             scene); 0, the default, is the limp thread the knot physics is tuned with.
         suture_stiffness_scale: perturbation: EI times this factor [-].
+        wound_gap: the wound's width between the tissue pad's two halves, as the thread's
+            contacts meet it [m] (surgical scene; None:
+            :data:`backends.pybullet.scene.WOUND_GAP`, 1 mm, which pinches the thread's
+            1.8 mm collision capsules: see there).
     """
 
     name = "pybullet"
@@ -185,6 +189,7 @@ class PyBulletBackend:
         friction_scale: float = 1.0,
         suture_bending_stiffness: float = 0.0,
         suture_stiffness_scale: float = 1.0,
+        wound_gap: float | None = None,
     ) -> None:
         self.gui = gui
         self.dt = dt
@@ -209,6 +214,7 @@ class PyBulletBackend:
         self.friction_scale = friction_scale
         self.suture_bending_stiffness = suture_bending_stiffness
         self.suture_stiffness_scale = suture_stiffness_scale
+        self.wound_gap = wound_gap
         self.scene: Any = None
         """The :class:`backends.pybullet.scene.Scene` when the surgical scene is built."""
         self._scene_model: Any = None
@@ -358,6 +364,7 @@ class PyBulletBackend:
                 stitch=self.stitch,
                 base_error=self.base_error,
                 bending_stiffness=self.suture_bending_stiffness * self.suture_stiffness_scale,
+                **self._wound(),
             )
         except SutureError as exc:
             raise BackendError(self.name, str(exc)) from None
@@ -796,9 +803,14 @@ class PyBulletBackend:
                 start,
                 self.tail,
                 self.suture_bending_stiffness * self.suture_stiffness_scale,
+                **self._wound(),
             )
         except SutureError as exc:
             raise BackendError(self.name, f"cannot load a suture: {exc}") from None
+
+    def _wound(self) -> dict[str, float]:
+        """The ``wound_gap`` keyword for the scene's pads, when one was given."""
+        return {} if self.wound_gap is None else {"wound_gap": float(self.wound_gap)}
 
     def close(self) -> None:
         """Disconnect; idempotent."""

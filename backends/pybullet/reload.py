@@ -31,6 +31,7 @@ from backends.pybullet.scene import (
     Scene,
     SceneError,
     hanging_path,
+    WOUND_GAP,
     model_tissue,
     stitch_points,
     stitched_path,
@@ -86,6 +87,7 @@ def load_thread(
     start: str,
     tail: float,
     bending_stiffness: float = 0.0,
+    wound_gap: float = WOUND_GAP,
 ) -> Suture:
     """Load a new thread for the stitch from ``entry`` to ``exit_`` (tissue point names).
 
@@ -97,6 +99,8 @@ def load_thread(
         start: ``"stitched"`` or ``"needle"`` (:data:`RELOAD_STARTS`).
         tail: the stitched thread's tail out of the entry point [m].
         bending_stiffness: the thread's flexural rigidity EI [N*m^2].
+        wound_gap: the new pad's wound width, as the thread's contacts meet it [m]
+            (:data:`~backends.pybullet.scene.WOUND_GAP`).
 
     Returns:
         The new thread (also ``scene.suture``).
@@ -126,7 +130,7 @@ def load_thread(
     client = scene.client
     normal = np.asarray(model.tissue.normal, float)
     normal = normal / np.linalg.norm(normal)
-    tissue = model_tissue(client, model, a, b)
+    tissue = model_tissue(client, model, a, b, wound_gap)
     params = suture_params(model, bending_stiffness)
     jaw, axis = stitcher.needle_jaw()
     lift = params.collision_radius + 0.5e-3

@@ -129,6 +129,14 @@ PAD_SIZE = (0.24, 0.24, 0.01)
 Wide enough that the thread's slack (the stitched start lays ~160 mm of it on the
 surface, out to ~90 mm from the wound) stays on the pad instead of sinking past its edge
 and snagging under it; the instruments pass through the pad."""
+WOUND_GAP = 1e-3
+"""Width of the wound between the pad's two halves, as the thread's contacts meet it [m]
+(the default every result so far was measured with). The thread collides as capsules
+1.8 mm thick (``SutureParams.collision_radius``), six times the 2-0 thread's 0.3 mm, so
+in a 1 mm slit a capsule drawn into the wound is pinched between the two static halves
+(about 1 mm deep in each): the contacts then hold it with tens of newtons and the
+joints beside it read a tension no pull made. 2.5 mm (1 mm plus the capsule's 1.5 mm
+of extra thickness) keeps the real thread's clearance in a 1 mm wound."""
 
 _KNOTS: dict[str, tuple[bool, ...]] = {
     "overhand": (False,),
@@ -217,6 +225,7 @@ def build_scene(
     stitch: tuple[str, str] | None = None,
     base_error: Mapping[str, Any] | None = None,
     bending_stiffness: float = 0.0,
+    wound_gap: float = WOUND_GAP,
 ) -> Scene:
     """Build the scene headless from the scene model or a plain dict.
 
@@ -241,6 +250,8 @@ def build_scene(
             actual base from its declared position (a calibration error).
         bending_stiffness: the thread's flexural rigidity EI [N*m^2]
             (:class:`~backends.pybullet.suture.SutureParams`).
+        wound_gap: with a scene model: the wound's width between the pad's halves, as
+            the thread's contacts meet it [m] (:data:`WOUND_GAP`).
 
     Returns:
         The scene; graspers hold nothing yet and sit at the thread's ends. A scene
@@ -253,7 +264,9 @@ def build_scene(
     import pybullet as p
 
     if config is not None and hasattr(config, "robots"):
-        return _from_model(config, seed, start, tail, stitch, base_error, bending_stiffness)
+        return _from_model(
+            config, seed, start, tail, stitch, base_error, bending_stiffness, wound_gap
+        )
     cfg = copy.deepcopy(DEFAULT_SCENE)
     for key, value in (config or {}).items():
         if key not in cfg:
@@ -625,9 +638,12 @@ def stitched_path(
     return np.vstack([stitched, route(hi)[1:], end])
 
 
-def model_tissue(client: int, model: Any, entry: Any, exit_: Any) -> Tissue:
+def model_tissue(
+    client: int, model: Any, entry: Any, exit_: Any, wound_gap: float = WOUND_GAP
+) -> Tissue:
     """The scene model's tissue pad with its stitch channel from ``entry`` to ``exit_``
-    [m], centred on the wound, in the world of ``client``."""
+    [m], centred on the wound, in the world of ``client``; its halves ``wound_gap`` [m]
+    apart (:data:`WOUND_GAP`)."""
     normal = np.asarray(model.tissue.normal, float)
     normal = normal / np.linalg.norm(normal)
     a, b = np.asarray(entry, float), np.asarray(exit_, float)
@@ -639,6 +655,7 @@ def model_tissue(client: int, model: Any, entry: Any, exit_: Any) -> Tissue:
         normal=tuple(normal),
         depth=channel_depth(float(np.linalg.norm(b - a))),
         size=PAD_SIZE,
+        wound_gap=wound_gap,
     )
 
 
@@ -659,6 +676,7 @@ def _from_model(
     stitch: tuple[str, str] | None = None,
     base_error: Mapping[str, Any] | None = None,
     bending_stiffness: float = 0.0,
+    wound_gap: float = WOUND_GAP,
 ) -> Scene:
     """Build the scene from the language's scene model (robots, tissue, suture)."""
     import pybullet as p
@@ -679,7 +697,7 @@ def _from_model(
     client = p.connect(p.DIRECT)
     try:
         return _build_model(
-            client, model, seed, start, tail, entry, exit_, errors, bending_stiffness
+            client, model, seed, start, tail, entry, exit_, errors, bending_stiffness, wound_gap
         )
     except BaseException:
         p.disconnect(physicsClientId=client)
@@ -715,6 +733,7 @@ def _build_model(
     exit_: Any,
     base_error: Mapping[str, Any],
     bending_stiffness: float,
+    wound_gap: float,
 ) -> Scene:
     import pybullet as p
 
@@ -737,7 +756,7 @@ def _build_model(
 
     normal = np.asarray(model.tissue.normal, float)
     normal = normal / np.linalg.norm(normal)
-    tissue = model_tissue(client, model, entry, exit_)
+    tissue = model_tissue(client, model, entry, exit_, wound_gap)
     params = suture_params(model, bending_stiffness)
     stitchers = [n for n, spec in sorted(model.robots.items()) if spec.tool == "stitcher"]
     holders = [n for n, spec in sorted(model.robots.items()) if spec.tool == "grasper"]

@@ -176,7 +176,8 @@ class Tissue:
                 ``k_lateral`` [N/m], ``c_lateral`` [N*s/m], ``k_hole`` [N/m], ``capture`` [m].
 
         Raises:
-            TissueError: a zero normal, coincident entry/exit, or non-positive depth.
+            TissueError: a zero normal, coincident entry/exit, a non-positive depth, or a
+                wound gap that is negative or not narrower than the pad.
         """
         import pybullet as p
 
@@ -190,6 +191,8 @@ class Tissue:
             raise TissueError("exit", exit, "must differ from entry along the surface")
         if depth <= 0:
             raise TissueError("depth", depth, "must be > 0 [m]")
+        if not 0 <= wound_gap < size[0]:
+            raise TissueError("wound_gap", wound_gap, f"must be in [0, {size[0]:g}) [m]")
         self = cls(
             client=client,
             entry=entry,
