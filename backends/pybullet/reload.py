@@ -28,10 +28,10 @@ from numpy.typing import NDArray
 
 from backends.pybullet.scene import (
     PARKED,
+    WOUND_GAP,
     Scene,
     SceneError,
     hanging_path,
-    WOUND_GAP,
     model_tissue,
     stitch_points,
     stitched_path,
