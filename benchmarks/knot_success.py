@@ -612,8 +612,8 @@ def main(argv: Sequence[str]) -> int:
         type=float,
         default=None,
         help="the tissue pad's wound width as the thread's contacts meet it [mm] (default: "
-        "the backend's, 1 mm; 2.5 mm keeps a 2-0 thread's clearance for the 1.8 mm model "
-        "thread); give --resume only with the same value",
+        "the backend's, 1 mm, which pinches the 1.8 mm model thread; 0: the wound closed); "
+        "give --resume only with the same value",
     )
     ap.add_argument(
         "--runs",

@@ -160,7 +160,7 @@ class PyBulletBackend:
         wound_gap: the wound's width between the tissue pad's two halves, as the thread's
             contacts meet it [m] (surgical scene; None:
             :data:`backends.pybullet.scene.WOUND_GAP`, 1 mm, which pinches the thread's
-            1.8 mm collision capsules: see there).
+            1.8 mm collision capsules; 0 closes the wound: see there).
     """
 
     name = "pybullet"

@@ -132,11 +132,12 @@ and snagging under it; the instruments pass through the pad."""
 WOUND_GAP = 1e-3
 """Width of the wound between the pad's two halves, as the thread's contacts meet it [m]
 (the default every result so far was measured with). The thread collides as capsules
-1.8 mm thick (``SutureParams.collision_radius``), six times the 2-0 thread's 0.3 mm, so
-in a 1 mm slit a capsule drawn into the wound is pinched between the two static halves
-(about 1 mm deep in each): the contacts then hold it with tens of newtons and the
-joints beside it read a tension no pull made. 2.5 mm (1 mm plus the capsule's 1.5 mm
-of extra thickness) keeps the real thread's clearance in a 1 mm wound."""
+1.8 mm thick (``SutureParams.collision_radius``), six times the 2-0 thread's 0.3 mm, so a
+capsule drawn down into a 1 mm slit (the knot tightened over the wound) is pinched between
+the two static halves, about 1 mm deep in each: the contacts then hold it with tens of
+newtons, and the joints beside it read a tension no pull made. A slit wider than the
+capsules lets the thread fall through the pad. 0 (the wound closed, its edges apposed
+under the knot) does neither."""
 
 _KNOTS: dict[str, tuple[bool, ...]] = {
     "overhand": (False,),
