@@ -38,7 +38,7 @@ Usage::
     python benchmarks/knot_success.py [--seeds 20] [--algorithms 1,2,3] [--max-time 300]
         [--workers 2] [--out runs/knot-success] [--backend pybullet-surgical]
         [--base-seed 0] [--no-perturb] [--bending-stiffness EI] [--wound-gap MM]
-        [--single] [--resume]
+        [--wound-depth MM] [--single] [--resume]
         [--only base,friction,stiffness] [--base-part all|common|relative]
         [--set NAME=VALUE ...] [--runs 1,2,5-9]
 
@@ -616,6 +616,13 @@ def main(argv: Sequence[str]) -> int:
         "give --resume only with the same value",
     )
     ap.add_argument(
+        "--wound-depth",
+        type=float,
+        default=None,
+        help="how deep the pad's wound stays open [mm], a floor below (default: through "
+        "the pad); give --resume only with the same value",
+    )
+    ap.add_argument(
         "--runs",
         default=None,
         help="run only these runs of the --seeds draws, e.g. 1,2,5-9 (each keeps its own "
@@ -673,18 +680,23 @@ def main(argv: Sequence[str]) -> int:
         jobs = [
             j._replace(options={**j.options, "suture_bending_stiffness": nominal_ei}) for j in jobs
         ]
-    if args.wound_gap is not None:
-        if "wound_gap" not in accepted:
-            ap.error(f"--wound-gap: backend {args.backend} takes no wound_gap")
-        if not args.wound_gap >= 0:
-            ap.error(f"--wound-gap: a width >= 0 [mm], got {args.wound_gap}")
-        gap = args.wound_gap * 1e-3
-        jobs = [j._replace(options={**j.options, "wound_gap": gap}) for j in jobs]
+    for flag, key in (("--wound-gap", "wound_gap"), ("--wound-depth", "wound_depth")):
+        mm = getattr(args, key)
+        if mm is None:
+            continue
+        if key not in accepted:
+            ap.error(f"{flag}: backend {args.backend} takes no {key}")
+        if not (mm > 0 if key == "wound_depth" else mm >= 0):
+            bound = "> 0" if key == "wound_depth" else ">= 0"
+            ap.error(f"{flag}: a length {bound} [mm], got {mm}")
+        jobs = [j._replace(options={**j.options, key: mm * 1e-3}) for j in jobs]
     what = "knot-algorithm-N.yaml (one throw)" if args.single else "square-knot.yaml"
     if args.set:
         what += " --set " + " --set ".join(args.set)
     if args.wound_gap is not None:
         what += f", wound gap {args.wound_gap:g} mm"
+    if args.wound_depth is not None:
+        what += f", wound open {args.wound_depth:g} mm deep"
     runs = f"{args.seeds} run(s)" if args.runs is None else f"runs {args.runs} of {args.seeds}"
     print(
         f"{what} on {args.backend}: {runs} per algorithm "

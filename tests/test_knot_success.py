@@ -387,7 +387,12 @@ def test_the_true_peak_is_reported_apart_from_the_estimate(tmp_path: Path) -> No
 
 
 @pytest.mark.parametrize(
-    "bad", [["--wound-gap", "-1"], ["--wound-gap", "2.5", "--backend", "ideal"]]
+    "bad",
+    [
+        ["--wound-gap", "-1"],
+        ["--wound-depth", "0"],
+        ["--wound-gap", "2.5", "--backend", "ideal"],
+    ],
 )
 def test_command_line_refuses_a_wound_gap_it_cannot_give(bad: list[str]) -> None:
     """A negative width, or a backend without a tissue pad to part, is a usage error."""

@@ -470,27 +470,36 @@ def test_removed_posts_leave_the_world_once() -> None:
         be.close()
 
 
-@pytest.mark.parametrize("gap", [None, 0.0])
-def test_the_backends_wound_gap_parts_the_pads_halves(gap: float | None) -> None:
-    """The backend's ``wound_gap`` reaches the pad: its two halves stand that far apart
-    across the wound (PyBullet's own bounding boxes), 1 mm by default."""
+@pytest.mark.parametrize(("gap", "depth"), [(None, None), (0.0, None), (1e-3, 0.4e-3)])
+def test_the_backends_wound_parts_the_pads_halves(gap: float | None, depth: float | None) -> None:
+    """The backend's ``wound_gap`` and ``wound_depth`` reach the pad: its two halves stand
+    that far apart across the wound (PyBullet's own bounding boxes), 1 mm by default, and
+    a floor fills the wound from that depth down."""
     import pybullet as p
 
     from backends.pybullet.backend import StitchedSurgicalPyBulletBackend
-    from backends.pybullet.scene import WOUND_GAP
+    from backends.pybullet.scene import PAD_SIZE, WOUND_GAP
     from suture_engine.language.loader import load_procedure
 
     model = load_procedure(ROOT / "procedures" / "square-knot.yaml").scene
-    be = StitchedSurgicalPyBulletBackend(wound_gap=gap)
+    be = StitchedSurgicalPyBulletBackend(wound_gap=gap, wound_depth=depth)
     try:
         be.reset(model, 0)
         assert be.scene is not None and be.scene.tissue is not None
+        boxes = [p.getAABB(b, physicsClientId=be.client) for b in be.scene.tissue.bodies]
         # the wound runs along x: the halves face each other across y
-        lo, hi = sorted(
-            (p.getAABB(b, physicsClientId=be.client) for b in be.scene.tissue.bodies),
-            key=lambda box: box[0][1],
-        )
-        width = hi[0][1] - lo[1][1]
+        halves = sorted((b for b in boxes if b[1][2] > -1e-6), key=lambda box: box[0][1])
+        assert len(halves) == 2
+        width = halves[1][0][1] - halves[0][1][1]
         assert width == pytest.approx(WOUND_GAP if gap is None else gap, abs=1e-6)
+        floors = [b for b in boxes if b[1][2] <= -1e-6]
+        if depth is None:
+            assert floors == []
+        else:
+            (floor,) = floors
+            assert floor[1][2] == pytest.approx(-depth, abs=1e-6)
+            assert floor[0][2] == pytest.approx(-PAD_SIZE[2], abs=1e-6)
+            assert floor[0][1] == pytest.approx(halves[0][1][1], abs=1e-6)
+            assert floor[1][1] == pytest.approx(halves[1][0][1], abs=1e-6)
     finally:
         be.close()

@@ -412,7 +412,7 @@ def test_the_entry_arc_length_in_floats_has_the_numpy_expressions_bits() -> None
         assert tissue._sigma == sigma
 
 
-def _pull_along_the_wound(gap: float) -> tuple[float, float]:
+def _pull_along_the_wound(gap: float, depth: float | None = None) -> tuple[float, float]:
     """A 60 mm thread of eight capsules lies along the wound on the pad. For 0.3 s each
     capsule is pressed down with 0.5 N (a knot drawn down onto the wound); then the press
     stops and a 0.2 N pull along the wound draws its end for 0.5 s. Returns how far the
@@ -424,7 +424,7 @@ def _pull_along_the_wound(gap: float) -> tuple[float, float]:
         configure_physics(c)
         tissue = Tissue.create(
             c, (0.0, 0.0, 0.0), (0.0, -4e-3, 0.0), (0.0, 4e-3, 0.0),
-            size=(0.08, 0.08, 0.01), wound_gap=gap,
+            size=(0.08, 0.08, 0.01), wound_gap=gap, wound_depth=depth,
         )  # fmt: skip
         sut = Suture.create(
             c,
@@ -457,11 +457,15 @@ PULL = 0.2
 """The pull on the thread's end in the wound tests [N]."""
 
 
-def test_a_thread_pressed_onto_the_closed_wound_slides_along_it_under_its_pull() -> None:
-    """With the wound closed (its halves touching), a thread pressed down onto it and let
-    go slides along it under a small pull, and no joint reads more than the pull: Newton's
-    law for a thread that nothing else holds along its length."""
-    moved, peak = _pull_along_the_wound(0.0)
+@pytest.mark.parametrize(("gap", "depth"), [(0.0, None), (1e-3, 0.4e-3)])
+def test_a_thread_pressed_onto_a_closed_wound_slides_along_it_under_its_pull(
+    gap: float, depth: float | None
+) -> None:
+    """With the wound closed (its halves touching), or open only 0.4 mm deep above a
+    floor, a thread pressed down onto it and let go slides along it under a small pull,
+    and no joint reads more than the pull: Newton's law for a thread that nothing else
+    holds along its length."""
+    moved, peak = _pull_along_the_wound(gap, depth)
     assert moved > 0.05
     assert peak <= PULL * 1.001
 
@@ -477,16 +481,20 @@ def test_a_thread_pressed_into_the_default_wound_slides_along_it_under_its_pull(
     assert peak <= PULL * 1.001
 
 
-@pytest.mark.parametrize("gap", [-1e-3, 0.08])
-def test_a_wound_gap_outside_the_pad_is_refused(gap: float) -> None:
+@pytest.mark.parametrize(
+    ("gap", "depth", "field"),
+    [(-1e-3, None, "wound_gap"), (0.08, None, "wound_gap"), (1e-3, 0.0, "wound_depth"),
+     (1e-3, 0.01, "wound_depth")],
+)  # fmt: skip
+def test_a_wound_outside_the_pad_is_refused(gap: float, depth: float | None, field: str) -> None:
     import pybullet as p
 
     c = p.connect(p.DIRECT)
     try:
-        with pytest.raises(TissueError, match="wound_gap"):
+        with pytest.raises(TissueError, match=field):
             Tissue.create(
                 c, (0.0, 0.0, 0.0), (0.0, -4e-3, 0.0), (0.0, 4e-3, 0.0),
-                size=(0.08, 0.08, 0.01), wound_gap=gap,
+                size=(0.08, 0.08, 0.01), wound_gap=gap, wound_depth=depth,
             )  # fmt: skip
     finally:
         p.disconnect(physicsClientId=c)

@@ -161,6 +161,8 @@ class PyBulletBackend:
             contacts meet it [m] (surgical scene; None:
             :data:`backends.pybullet.scene.WOUND_GAP`, 1 mm, which pinches the thread's
             1.8 mm collision capsules; 0 closes the wound: see there).
+        wound_depth: how deep the wound stays open under the surface [m], a floor below
+            (surgical scene; None: open through the pad).
     """
 
     name = "pybullet"
@@ -190,6 +192,7 @@ class PyBulletBackend:
         suture_bending_stiffness: float = 0.0,
         suture_stiffness_scale: float = 1.0,
         wound_gap: float | None = None,
+        wound_depth: float | None = None,
     ) -> None:
         self.gui = gui
         self.dt = dt
@@ -215,6 +218,7 @@ class PyBulletBackend:
         self.suture_bending_stiffness = suture_bending_stiffness
         self.suture_stiffness_scale = suture_stiffness_scale
         self.wound_gap = wound_gap
+        self.wound_depth = wound_depth
         self.scene: Any = None
         """The :class:`backends.pybullet.scene.Scene` when the surgical scene is built."""
         self._scene_model: Any = None
@@ -809,8 +813,9 @@ class PyBulletBackend:
             raise BackendError(self.name, f"cannot load a suture: {exc}") from None
 
     def _wound(self) -> dict[str, float]:
-        """The ``wound_gap`` keyword for the scene's pads, when one was given."""
-        return {} if self.wound_gap is None else {"wound_gap": float(self.wound_gap)}
+        """The ``wound_gap`` and ``wound_depth`` keywords for the scene's pads, as given."""
+        given = {"wound_gap": self.wound_gap, "wound_depth": self.wound_depth}
+        return {k: float(v) for k, v in given.items() if v is not None}
 
     def close(self) -> None:
         """Disconnect; idempotent."""

@@ -88,6 +88,7 @@ def load_thread(
     tail: float,
     bending_stiffness: float = 0.0,
     wound_gap: float = WOUND_GAP,
+    wound_depth: float | None = None,
 ) -> Suture:
     """Load a new thread for the stitch from ``entry`` to ``exit_`` (tissue point names).
 
@@ -101,6 +102,7 @@ def load_thread(
         bending_stiffness: the thread's flexural rigidity EI [N*m^2].
         wound_gap: the new pad's wound width, as the thread's contacts meet it [m]
             (:data:`~backends.pybullet.scene.WOUND_GAP`).
+        wound_depth: how deep its wound stays open [m] (None: through the pad).
 
     Returns:
         The new thread (also ``scene.suture``).
@@ -130,7 +132,7 @@ def load_thread(
     client = scene.client
     normal = np.asarray(model.tissue.normal, float)
     normal = normal / np.linalg.norm(normal)
-    tissue = model_tissue(client, model, a, b, wound_gap)
+    tissue = model_tissue(client, model, a, b, wound_gap, wound_depth)
     params = suture_params(model, bending_stiffness)
     jaw, axis = stitcher.needle_jaw()
     lift = params.collision_radius + 0.5e-3

@@ -136,8 +136,10 @@ WOUND_GAP = 1e-3
 capsule drawn down into a 1 mm slit (the knot tightened over the wound) is pinched between
 the two static halves, about 1 mm deep in each: the contacts then hold it with tens of
 newtons, and the joints beside it read a tension no pull made. A slit wider than the
-capsules lets the thread fall through the pad. 0 (the wound closed, its edges apposed
-under the knot) does neither."""
+capsules lets the thread fall through the pad. A floor 0.4 mm under the surface
+(``wound_depth``: the edges apposed below a groove) keeps the capsules out of the slit's
+walls and leaves the groove a thread lying across the wound rests in; 0 (the wound
+closed) leaves no groove."""
 
 _KNOTS: dict[str, tuple[bool, ...]] = {
     "overhand": (False,),
@@ -227,6 +229,7 @@ def build_scene(
     base_error: Mapping[str, Any] | None = None,
     bending_stiffness: float = 0.0,
     wound_gap: float = WOUND_GAP,
+    wound_depth: float | None = None,
 ) -> Scene:
     """Build the scene headless from the scene model or a plain dict.
 
@@ -253,6 +256,8 @@ def build_scene(
             (:class:`~backends.pybullet.suture.SutureParams`).
         wound_gap: with a scene model: the wound's width between the pad's halves, as
             the thread's contacts meet it [m] (:data:`WOUND_GAP`).
+        wound_depth: with a scene model: how deep the wound stays open under the surface
+            [m], a floor below (None: through the pad; see :data:`WOUND_GAP`).
 
     Returns:
         The scene; graspers hold nothing yet and sit at the thread's ends. A scene
@@ -266,8 +271,9 @@ def build_scene(
 
     if config is not None and hasattr(config, "robots"):
         return _from_model(
-            config, seed, start, tail, stitch, base_error, bending_stiffness, wound_gap
-        )
+            config, seed, start, tail, stitch, base_error, bending_stiffness, wound_gap,
+            wound_depth,
+        )  # fmt: skip
     cfg = copy.deepcopy(DEFAULT_SCENE)
     for key, value in (config or {}).items():
         if key not in cfg:
@@ -640,11 +646,16 @@ def stitched_path(
 
 
 def model_tissue(
-    client: int, model: Any, entry: Any, exit_: Any, wound_gap: float = WOUND_GAP
+    client: int,
+    model: Any,
+    entry: Any,
+    exit_: Any,
+    wound_gap: float = WOUND_GAP,
+    wound_depth: float | None = None,
 ) -> Tissue:
     """The scene model's tissue pad with its stitch channel from ``entry`` to ``exit_``
     [m], centred on the wound, in the world of ``client``; its halves ``wound_gap`` [m]
-    apart (:data:`WOUND_GAP`)."""
+    apart, the wound open ``wound_depth`` [m] deep (None: through; :data:`WOUND_GAP`)."""
     normal = np.asarray(model.tissue.normal, float)
     normal = normal / np.linalg.norm(normal)
     a, b = np.asarray(entry, float), np.asarray(exit_, float)
@@ -657,6 +668,7 @@ def model_tissue(
         depth=channel_depth(float(np.linalg.norm(b - a))),
         size=PAD_SIZE,
         wound_gap=wound_gap,
+        wound_depth=wound_depth,
     )
 
 
@@ -678,6 +690,7 @@ def _from_model(
     base_error: Mapping[str, Any] | None = None,
     bending_stiffness: float = 0.0,
     wound_gap: float = WOUND_GAP,
+    wound_depth: float | None = None,
 ) -> Scene:
     """Build the scene from the language's scene model (robots, tissue, suture)."""
     import pybullet as p
@@ -698,8 +711,9 @@ def _from_model(
     client = p.connect(p.DIRECT)
     try:
         return _build_model(
-            client, model, seed, start, tail, entry, exit_, errors, bending_stiffness, wound_gap
-        )
+            client, model, seed, start, tail, entry, exit_, errors, bending_stiffness,
+            wound_gap, wound_depth,
+        )  # fmt: skip
     except BaseException:
         p.disconnect(physicsClientId=client)
         raise
@@ -735,6 +749,7 @@ def _build_model(
     base_error: Mapping[str, Any],
     bending_stiffness: float,
     wound_gap: float,
+    wound_depth: float | None,
 ) -> Scene:
     import pybullet as p
 
@@ -757,7 +772,7 @@ def _build_model(
 
     normal = np.asarray(model.tissue.normal, float)
     normal = normal / np.linalg.norm(normal)
-    tissue = model_tissue(client, model, entry, exit_, wound_gap)
+    tissue = model_tissue(client, model, entry, exit_, wound_gap, wound_depth)
     params = suture_params(model, bending_stiffness)
     stitchers = [n for n, spec in sorted(model.robots.items()) if spec.tool == "stitcher"]
     holders = [n for n, spec in sorted(model.robots.items()) if spec.tool == "grasper"]

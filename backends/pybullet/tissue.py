@@ -159,6 +159,7 @@ class Tissue:
         depth: float = 3e-3,
         size: tuple[float, float, float] = (0.04, 0.04, 0.01),
         wound_gap: float = 1e-3,
+        wound_depth: float | None = None,
         **kwargs: float,
     ) -> Tissue:
         """Add a tissue pad to the world.
@@ -172,12 +173,16 @@ class Tissue:
             depth: channel depth at mid-span [m].
             size: pad length along entry->exit, width along the wound, thickness [m].
             wound_gap: width of the wound between the two halves [m].
+            wound_depth: how deep the wound stays open under the surface [m]: below it
+                a floor closes it (the edges apposed under the surface); None: open
+                through the pad.
             **kwargs: ``f_static`` [N], ``f_viscous`` [N*s/m],
                 ``k_lateral`` [N/m], ``c_lateral`` [N*s/m], ``k_hole`` [N/m], ``capture`` [m].
 
         Raises:
-            TissueError: a zero normal, coincident entry/exit, a non-positive depth, or a
-                wound gap that is negative or not narrower than the pad.
+            TissueError: a zero normal, coincident entry/exit, a non-positive depth, a
+                wound gap that is negative or not narrower than the pad, or a wound depth
+                outside the pad's thickness.
         """
         import pybullet as p
 
@@ -193,6 +198,10 @@ class Tissue:
             raise TissueError("depth", depth, "must be > 0 [m]")
         if not 0 <= wound_gap < size[0]:
             raise TissueError("wound_gap", wound_gap, f"must be in [0, {size[0]:g}) [m]")
+        if wound_depth is not None and not 0 < wound_depth < size[2]:
+            raise TissueError(
+                "wound_depth", wound_depth, f"must be in (0, {size[2]:g}) [m] or None"
+            )
         self = cls(
             client=client,
             entry=entry,
@@ -220,6 +229,22 @@ class Tissue:
         )
         for side in (-1, 1):
             pos = c + ex * side * (half[0] + wound_gap / 2) - n * half[2]
+            body = p.createMultiBody(0.0, col, vis, pos.tolist(), quat, physicsClientId=client)
+            p.changeDynamics(body, -1, lateralFriction=0.5, physicsClientId=client)
+            self.bodies.append(body)
+        if wound_depth is not None and wound_gap > 0:
+            # the wound's floor: the slit's width, from wound_depth down to the pad's bottom
+            floor = np.array([wound_gap / 2, size[1] / 2, (size[2] - wound_depth) / 2])
+            col = p.createCollisionShape(
+                p.GEOM_BOX, halfExtents=floor.tolist(), physicsClientId=client
+            )
+            vis = p.createVisualShape(
+                p.GEOM_BOX,
+                halfExtents=floor.tolist(),
+                rgbaColor=[0.8, 0.4, 0.4, 1.0],
+                physicsClientId=client,
+            )
+            pos = c - n * (wound_depth + floor[2])
             body = p.createMultiBody(0.0, col, vis, pos.tolist(), quat, physicsClientId=client)
             p.changeDynamics(body, -1, lateralFriction=0.5, physicsClientId=client)
             self.bodies.append(body)
