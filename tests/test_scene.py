@@ -478,7 +478,8 @@ def test_the_backends_wound_parts_the_pads_halves(gap: float | None, depth: floa
     import pybullet as p
 
     from backends.pybullet.backend import StitchedSurgicalPyBulletBackend
-    from backends.pybullet.scene import PAD_SIZE, WOUND_GAP
+    from backends.pybullet.scene import PAD_SIZE
+    from backends.pybullet.tissue import WOUND_GAP
     from suture_engine.language.loader import load_procedure
 
     model = load_procedure(ROOT / "procedures" / "square-knot.yaml").scene

@@ -10,9 +10,8 @@ import math
 import numpy as np
 import pytest
 
-from backends.pybullet.scene import WOUND_GAP
 from backends.pybullet.suture import Suture, SutureParams, configure_physics, straight_path
-from backends.pybullet.tissue import Tissue, TissueError
+from backends.pybullet.tissue import WOUND_GAP, Tissue, TissueError
 from backends.pybullet.tools import Stitcher
 
 DOWN = (1.0, 0.0, 0.0, 0.0)  # rotation by pi about x: the tip's z points down

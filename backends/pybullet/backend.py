@@ -159,7 +159,7 @@ class PyBulletBackend:
         suture_stiffness_scale: perturbation: EI times this factor [-].
         wound_gap: the wound's width between the tissue pad's two halves, as the thread's
             contacts meet it [m] (surgical scene; None:
-            :data:`backends.pybullet.scene.WOUND_GAP`, 1 mm, which pinches the thread's
+            :data:`backends.pybullet.tissue.WOUND_GAP`, 1 mm, which pinches the thread's
             1.8 mm collision capsules; 0 closes the wound: see there).
         wound_depth: how deep the wound stays open under the surface [m], a floor below
             (surgical scene; None: open through the pad).

@@ -28,7 +28,6 @@ from numpy.typing import NDArray
 
 from backends.pybullet.scene import (
     PARKED,
-    WOUND_GAP,
     Scene,
     SceneError,
     hanging_path,
@@ -38,6 +37,7 @@ from backends.pybullet.scene import (
     suture_params,
 )
 from backends.pybullet.suture import Suture
+from backends.pybullet.tissue import WOUND_GAP
 from backends.pybullet.tools import Grasper, Stitcher
 
 __all__ = ["RELOAD_STARTS", "CutThread", "cut_thread", "load_thread"]
@@ -101,7 +101,7 @@ def load_thread(
         tail: the stitched thread's tail out of the entry point [m].
         bending_stiffness: the thread's flexural rigidity EI [N*m^2].
         wound_gap: the new pad's wound width, as the thread's contacts meet it [m]
-            (:data:`~backends.pybullet.scene.WOUND_GAP`).
+            (:data:`~backends.pybullet.tissue.WOUND_GAP`).
         wound_depth: how deep its wound stays open [m] (None: through the pad).
 
     Returns:

@@ -41,7 +41,7 @@ from backends.pybullet.suture import (
     knotted_path,
     straight_path,
 )
-from backends.pybullet.tissue import Tissue
+from backends.pybullet.tissue import WOUND_GAP, Tissue
 from backends.pybullet.tools import Grasper, Stitcher, Tool
 from suture_engine.errors import SutureError
 
@@ -129,17 +129,6 @@ PAD_SIZE = (0.24, 0.24, 0.01)
 Wide enough that the thread's slack (the stitched start lays ~160 mm of it on the
 surface, out to ~90 mm from the wound) stays on the pad instead of sinking past its edge
 and snagging under it; the instruments pass through the pad."""
-WOUND_GAP = 1e-3
-"""Width of the wound between the pad's two halves, as the thread's contacts meet it [m]
-(the default every result so far was measured with). The thread collides as capsules
-1.8 mm thick (``SutureParams.collision_radius``), six times the 2-0 thread's 0.3 mm, so a
-capsule drawn down into a 1 mm slit (the knot tightened over the wound) is pinched between
-the two static halves, about 1 mm deep in each: the contacts then hold it with tens of
-newtons, and the joints beside it read a tension no pull made. A slit wider than the
-capsules lets the thread fall through the pad. A floor 0.4 mm under the surface
-(``wound_depth``: the edges apposed below a groove) keeps the capsules out of the slit's
-walls and leaves the groove a thread lying across the wound rests in; 0 (the wound
-closed) leaves no groove."""
 
 _KNOTS: dict[str, tuple[bool, ...]] = {
     "overhand": (False,),

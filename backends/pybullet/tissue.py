@@ -51,7 +51,7 @@ from suture_engine.errors import SutureError
 if TYPE_CHECKING:
     from backends.pybullet.suture import Suture
 
-__all__ = ["Tissue", "TissueError", "channel_friction"]
+__all__ = ["WOUND_GAP", "Tissue", "TissueError", "channel_friction"]
 
 Vec3 = tuple[float, float, float]
 FloatArray = NDArray[np.float64]
@@ -74,6 +74,19 @@ class TissueError(SutureError):
         self.value = value
         self.reason = reason
 
+
+WOUND_GAP = 1e-3
+"""Width of the wound between the pad's two halves, as the thread's contacts meet it [m]
+(:meth:`Tissue.create`'s default, which every result so far was measured with). The
+thread collides as capsules 1.8 mm thick (``SutureParams.collision_radius``), six times
+the 2-0 thread's 0.3 mm, so a capsule drawn down into a 1 mm slit (the knot tightened
+over the wound) is pinched between the two static halves, about 1 mm deep in each: the
+contacts then hold it with tens of newtons, and the joints beside it read a tension no
+pull made. A slit wider than the capsules lets the thread fall through the pad. A floor
+0.4 mm under the surface (``wound_depth``: the edges apposed below a groove) keeps the
+capsules out of the slit's walls and leaves the groove a thread lying across the wound
+rests in, but a capsule that leaves the stitch channel inside the floor is thrown out of
+it (one run drew 30 N true, docs/status.md); 0 (the wound closed) leaves no groove."""
 
 HOLE_RAMP = 1.0
 """Time over which the holes' hold is taken up once the stitch is made [s]."""
@@ -158,7 +171,7 @@ class Tissue:
         normal: Vec3 = (0.0, 0.0, 1.0),
         depth: float = 3e-3,
         size: tuple[float, float, float] = (0.04, 0.04, 0.01),
-        wound_gap: float = 1e-3,
+        wound_gap: float = WOUND_GAP,
         wound_depth: float | None = None,
         **kwargs: float,
     ) -> Tissue:
@@ -172,10 +185,10 @@ class Tissue:
             normal: outward surface normal (normalised here).
             depth: channel depth at mid-span [m].
             size: pad length along entry->exit, width along the wound, thickness [m].
-            wound_gap: width of the wound between the two halves [m].
+            wound_gap: width of the wound between the two halves [m] (:data:`WOUND_GAP`).
             wound_depth: how deep the wound stays open under the surface [m]: below it
                 a floor closes it (the edges apposed under the surface); None: open
-                through the pad.
+                through the pad. No floor without a gap.
             **kwargs: ``f_static`` [N], ``f_viscous`` [N*s/m],
                 ``k_lateral`` [N/m], ``c_lateral`` [N*s/m], ``k_hole`` [N/m], ``capture`` [m].
 
