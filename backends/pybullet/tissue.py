@@ -88,6 +88,12 @@ capsules out of the slit's walls and leaves the groove a thread lying across the
 rests in, but a capsule that leaves the stitch channel inside the floor is thrown out of
 it (one run drew 30 N true, docs/status.md); 0 (the wound closed) leaves no groove."""
 
+CLEAR_DEPTH = 0.1e-3
+"""How deep a capsule leaving the stitch channel may still lie in a pad body when its
+contact with it is turned back on [m]. A capsule resting on the pad under a 0.5 N press
+sinks 0.02-0.03 mm into it (contactERP 0.4, 1 kHz); one deeper than this waits until it
+has come out (:meth:`Tissue._pass_through`)."""
+
 HOLE_RAMP = 1.0
 """Time over which the holes' hold is taken up once the stitch is made [s]."""
 
@@ -140,6 +146,9 @@ class Tissue:
     suture: Suture | None = None
     inside: list[int] = field(default_factory=list)
     _passing: set[int] = field(default_factory=set)
+    _clearing: set[tuple[int, int]] = field(default_factory=set)
+    """(capsule, pad body) pairs left out of the channel but not yet clear of that body:
+    their contacts wait (see :meth:`_pass_through`)."""
     _anchors: dict[int, int] = field(default_factory=dict)
     last_friction: float = 0.0
     last_sliding_speed: float = 0.0
@@ -282,6 +291,7 @@ class Tissue:
         self.bodies.clear()
         self.suture = self._tracked = None
         self._passing.clear()
+        self._clearing.clear()
 
     def thread(self, suture: Suture) -> None:
         """Declare that ``suture`` passes through the stitch channel (after the needle pass)."""
@@ -319,20 +329,46 @@ class Tissue:
         self._snag_steps = max(1, round(duration / dt))
 
     def _pass_through(self, index: int, through: bool) -> None:
-        """Let thread capsule ``index`` pass through the pad (no collision), or not."""
+        """Let thread capsule ``index`` pass through the pad (no collision), or not.
+
+        A capsule given its contacts back is given them body by body, and only once it lies
+        no deeper than :data:`CLEAR_DEPTH` in that body: until then the pair waits in
+        ``_clearing`` (see :meth:`_clear_passed`). A capsule that leaves the channel's set
+        while still inside the pad (the thread slipping a capsule through the stitch)
+        would otherwise be thrown out by the contact's penetration recovery in one step."""
         import pybullet as p
 
         sut = self.suture or self._tracked
         if sut is None:
             return
+        c = self.client
+        capsule = sut.bodies[index]
         for body in self.bodies:
-            p.setCollisionFilterPair(
-                sut.bodies[index], body, -1, -1, int(not through), physicsClientId=self.client
-            )
+            if through:
+                self._clearing.discard((index, body))
+                enable = 0
+            elif p.getClosestPoints(body, capsule, -CLEAR_DEPTH, physicsClientId=c):
+                self._clearing.add((index, body))
+                continue  # still inside the body: stays passable until it has come out
+            else:
+                enable = 1
+            p.setCollisionFilterPair(capsule, body, -1, -1, enable, physicsClientId=c)
         if through:
             self._passing.add(index)
         else:
             self._passing.discard(index)
+
+    def _clear_passed(self, sut: Suture) -> None:
+        """Give each waiting capsule (``_clearing``) its contact with a pad body once it
+        lies no deeper than :data:`CLEAR_DEPTH` in it."""
+        import pybullet as p
+
+        c = self.client
+        for index, body in sorted(self._clearing):
+            capsule = sut.bodies[index]
+            if not p.getClosestPoints(body, capsule, -CLEAR_DEPTH, physicsClientId=c):
+                p.setCollisionFilterPair(capsule, body, -1, -1, 1, physicsClientId=c)
+                self._clearing.discard((index, body))
 
     def _height(self, x: FloatArray) -> float:
         """Height of ``x`` above the pad's top surface [m]."""
@@ -523,6 +559,8 @@ class Tissue:
         for i in passing ^ self._passing:
             self._pass_through(i, i in passing)
         self._passing = passing
+        if self._clearing:
+            self._clear_passed(sut)
         self.inside = inside
         # Friction the anchors applied in the last step, along the channel (4.5, static part).
         tan_t: dict[int, Vec3] = {}
