@@ -79,14 +79,15 @@ WOUND_GAP = 1e-3
 """Width of the wound between the pad's two halves, as the thread's contacts meet it [m]
 (:meth:`Tissue.create`'s default, which every result so far was measured with). The
 thread collides as capsules 1.8 mm thick (``SutureParams.collision_radius``), six times
-the 2-0 thread's 0.3 mm, so a capsule drawn down into a 1 mm slit (the knot tightened
-over the wound) is pinched between the two static halves, about 1 mm deep in each: the
-contacts then hold it with tens of newtons, and the joints beside it read a tension no
-pull made. A slit wider than the capsules lets the thread fall through the pad. A floor
-0.4 mm under the surface (``wound_depth``: the edges apposed below a groove) keeps the
-capsules out of the slit's walls and leaves the groove a thread lying across the wound
-rests in, but a capsule that leaves the stitch channel inside the floor is thrown out of
-it (one run drew 30 N true, docs/status.md); 0 (the wound closed) leaves no groove."""
+the 2-0 thread's 0.3 mm, so a capsule pressed down into a 1 mm slit is pinched between
+the two static halves, about 1 mm deep in each: the contacts then hold it with tens of
+newtons, and the joints beside it read a tension no pull made. Algorithm 3's spikes over
+the limit came from capsules thrown into the slit when they got their contacts back
+inside a half (removed by :data:`CLEAR_DEPTH`'s wait); a press alone still pinches one
+(``tests/test_tissue.py``). A slit wider than the capsules lets the thread fall through
+the pad. A floor 0.4 mm under the surface (``wound_depth``: the edges apposed below a
+groove) keeps the capsules out of the slit's walls; 0 (the wound closed) leaves no
+groove. Both tie fewer squares with algorithm 3 (docs/status.md)."""
 
 CLEAR_DEPTH = 0.1e-3
 """How deep a capsule leaving the stitch channel may still lie in a pad body when its
