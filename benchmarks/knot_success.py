@@ -38,7 +38,7 @@ Usage::
     python benchmarks/knot_success.py [--seeds 20] [--algorithms 1,2,3] [--max-time 300]
         [--workers 2] [--out runs/knot-success] [--backend pybullet-surgical]
         [--base-seed 0] [--no-perturb] [--bending-stiffness EI] [--wound-gap MM]
-        [--wound-depth MM] [--single] [--resume]
+        [--wound-depth MM] [--pad-clear-depth MM] [--single] [--resume]
         [--only base,friction,stiffness] [--base-part all|common|relative]
         [--set NAME=VALUE ...] [--runs 1,2,5-9]
 
@@ -623,6 +623,14 @@ def main(argv: Sequence[str]) -> int:
         "the pad); give --resume only with the same value",
     )
     ap.add_argument(
+        "--pad-clear-depth",
+        type=float,
+        default=None,
+        help="a thread capsule leaving the stitch channel inside the pad gets its contacts "
+        "with the pad back only once it lies no deeper than this in it [mm] (default: at "
+        "once; 0.1 turns the wait on); give --resume only with the same value",
+    )
+    ap.add_argument(
         "--runs",
         default=None,
         help="run only these runs of the --seeds draws, e.g. 1,2,5-9 (each keeps its own "
@@ -680,7 +688,12 @@ def main(argv: Sequence[str]) -> int:
         jobs = [
             j._replace(options={**j.options, "suture_bending_stiffness": nominal_ei}) for j in jobs
         ]
-    for flag, key in (("--wound-gap", "wound_gap"), ("--wound-depth", "wound_depth")):
+    lengths = (
+        ("--wound-gap", "wound_gap"),
+        ("--wound-depth", "wound_depth"),
+        ("--pad-clear-depth", "pad_clear_depth"),
+    )
+    for flag, key in lengths:
         mm = getattr(args, key)
         if mm is None:
             continue
@@ -697,6 +710,8 @@ def main(argv: Sequence[str]) -> int:
         what += f", wound gap {args.wound_gap:g} mm"
     if args.wound_depth is not None:
         what += f", wound open {args.wound_depth:g} mm deep"
+    if args.pad_clear_depth is not None:
+        what += f", pad contacts back within {args.pad_clear_depth:g} mm"
     runs = f"{args.seeds} run(s)" if args.runs is None else f"runs {args.runs} of {args.seeds}"
     print(
         f"{what} on {args.backend}: {runs} per algorithm "

@@ -504,3 +504,28 @@ def test_the_backends_wound_parts_the_pads_halves(gap: float | None, depth: floa
             assert floor[1][1] == pytest.approx(halves[1][0][1], abs=1e-6)
     finally:
         be.close()
+
+
+@pytest.mark.parametrize("depth", [None, 1e-4])
+def test_the_backends_pad_clear_depth_reaches_the_pad(depth: float | None) -> None:
+    """The backend's ``pad_clear_depth`` is the tissue pad's ``clear_depth``, None (no
+    wait) by default."""
+    from backends.pybullet.backend import StitchedSurgicalPyBulletBackend
+    from suture_engine.language.loader import load_procedure
+
+    model = load_procedure(ROOT / "procedures" / "square-knot.yaml").scene
+    be = StitchedSurgicalPyBulletBackend(pad_clear_depth=depth)
+    try:
+        be.reset(model, 0)
+        assert be.scene is not None and be.scene.tissue is not None
+        assert be.scene.tissue.clear_depth == depth
+    finally:
+        be.close()
+
+
+def test_the_backend_refuses_a_negative_pad_clear_depth() -> None:
+    from backends.base import BackendError
+    from backends.pybullet.backend import StitchedSurgicalPyBulletBackend
+
+    with pytest.raises(BackendError, match="pad_clear_depth"):
+        StitchedSurgicalPyBulletBackend(pad_clear_depth=-1e-4)

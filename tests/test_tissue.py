@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from backends.pybullet.suture import Suture, SutureParams, configure_physics, straight_path
-from backends.pybullet.tissue import WOUND_GAP, Tissue, TissueError
+from backends.pybullet.tissue import CLEAR_DEPTH, WOUND_GAP, Tissue, TissueError
 from backends.pybullet.tools import Stitcher
 
 DOWN = (1.0, 0.0, 0.0, 0.0)  # rotation by pi about x: the tip's z points down
@@ -499,20 +499,21 @@ def test_a_wound_outside_the_pad_is_refused(gap: float, depth: float | None, fie
         p.disconnect(physicsClientId=c)
 
 
-def test_a_capsule_that_leaves_the_channel_inside_the_pad_is_not_thrown_out() -> None:
+def _cut_the_channel(clear_depth: float | None) -> tuple[float, float, int]:
     """A 40 mm thread lies in a straight channel 2 mm under the surface. After 0.1 s the
     channel is cut to its first 14 mm (as when the thread slips through the stitch): the
-    capsules past it leave the channel while still inside the pad. They must not be
-    thrown out by the contacts they get back there: without the wait for them to come
-    out, they left at 1.4 m/s and the thread's joints read 0.6 N."""
+    capsules past it leave the channel while still inside the pad. Returns the fastest
+    capsule's speed [m/s] and the largest joint tension [N] in the 0.3 s after the cut, and
+    how many capsules are left in the channel."""
     import pybullet as p
 
     c = p.connect(p.DIRECT)
     try:
         configure_physics(c)
         tissue = Tissue.create(
-            c, (0.0, 0.0, 0.0), (0.0, -15e-3, 0.0), (0.0, 15e-3, 0.0), size=(0.06, 0.04, 0.01)
-        )
+            c, (0.0, 0.0, 0.0), (0.0, -15e-3, 0.0), (0.0, 15e-3, 0.0), size=(0.06, 0.04, 0.01),
+            clear_depth=clear_depth,
+        )  # fmt: skip
         sut = Suture.create(
             c,
             straight_path((0.0, -0.02, -2e-3), (0.0, 1.0, 0.0), 0.04),
@@ -533,8 +534,26 @@ def test_a_capsule_that_leaves_the_channel_inside_the_pad_is_not_thrown_out() ->
                 speeds = [np.linalg.norm(p.getBaseVelocity(b, physicsClientId=c)[0])
                           for b in sut.bodies]  # fmt: skip
                 fastest = max(fastest, float(max(speeds)))
-        assert len(tissue.inside) < len(sut.bodies) // 2  # the cut took effect
-        assert fastest < 0.05
-        assert peak < 0.05
+        return fastest, peak, len(tissue.inside)
     finally:
         p.disconnect(physicsClientId=c)
+
+
+def test_a_capsule_that_leaves_the_channel_inside_the_pad_waits_to_come_out() -> None:
+    """With the tissue's wait (``clear_depth``), the capsules cut out of the channel are
+    not thrown out by the contacts they would get back inside the pad."""
+    fastest, peak, inside = _cut_the_channel(CLEAR_DEPTH)
+    assert inside == 4  # the cut took effect: 14 mm of 4 mm capsules
+    assert fastest < 0.05
+    assert peak < 0.05
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="known limit of the default (no wait): a capsule that leaves the channel inside "
+    "the pad gets its contacts back there and is thrown out, 1.4 m/s (docs/status.md)",
+)
+def test_by_default_a_capsule_that_leaves_the_channel_inside_the_pad_is_not_thrown() -> None:
+    fastest, peak, _ = _cut_the_channel(None)
+    assert fastest < 0.05
+    assert peak < 0.05

@@ -163,6 +163,10 @@ class PyBulletBackend:
             1.8 mm collision capsules; 0 closes the wound: see there).
         wound_depth: how deep the wound stays open under the surface [m], a floor below
             (surgical scene; None: open through the pad).
+        pad_clear_depth: a thread capsule leaving the stitch channel inside the pad gets
+            its contacts with the pad back only once it lies no deeper than this in it [m]
+            (surgical scene; :attr:`backends.pybullet.tissue.Tissue.clear_depth`; None, the
+            default: at once, wherever it is).
     """
 
     name = "pybullet"
@@ -193,6 +197,7 @@ class PyBulletBackend:
         suture_stiffness_scale: float = 1.0,
         wound_gap: float | None = None,
         wound_depth: float | None = None,
+        pad_clear_depth: float | None = None,
     ) -> None:
         self.gui = gui
         self.dt = dt
@@ -219,6 +224,11 @@ class PyBulletBackend:
         self.suture_stiffness_scale = suture_stiffness_scale
         self.wound_gap = wound_gap
         self.wound_depth = wound_depth
+        if pad_clear_depth is not None and not pad_clear_depth >= 0.0:
+            raise BackendError(
+                self.name, f"pad_clear_depth must be >= 0 [m], got {pad_clear_depth}"
+            )
+        self.pad_clear_depth = pad_clear_depth
         self.scene: Any = None
         """The :class:`backends.pybullet.scene.Scene` when the surgical scene is built."""
         self._scene_model: Any = None
@@ -379,6 +389,7 @@ class PyBulletBackend:
                 if isinstance(tool, BentTipGrasper):
                     tool.set_bend(float(self.bend[0]), float(self.bend[1]))
         self.scene = built
+        self._configure_tissue()
         self.client = built.client
         if built.suture is not None:  # a freshly built scene always has its thread
             self._contact_diameter = 2.0 * float(built.suture.params.collision_radius)
@@ -811,6 +822,12 @@ class PyBulletBackend:
             )
         except SutureError as exc:
             raise BackendError(self.name, f"cannot load a suture: {exc}") from None
+        self._configure_tissue()
+
+    def _configure_tissue(self) -> None:
+        """Give the scene's tissue pad the backend's ``pad_clear_depth``."""
+        if self.scene is not None and self.scene.tissue is not None:
+            self.scene.tissue.clear_depth = self.pad_clear_depth
 
     def _wound(self) -> dict[str, float]:
         """The ``wound_gap`` and ``wound_depth`` keywords for the scene's pads, as given."""

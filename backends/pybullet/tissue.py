@@ -83,17 +83,18 @@ the 2-0 thread's 0.3 mm, so a capsule pressed down into a 1 mm slit is pinched b
 the two static halves, about 1 mm deep in each: the contacts then hold it with tens of
 newtons, and the joints beside it read a tension no pull made. Algorithm 3's spikes over
 the limit came from capsules thrown into the slit when they got their contacts back
-inside a half (removed by :data:`CLEAR_DEPTH`'s wait); a press alone still pinches one
-(``tests/test_tissue.py``). A slit wider than the capsules lets the thread fall through
+inside a half (:attr:`Tissue.clear_depth` makes them wait); a press alone still pinches
+one (``tests/test_tissue.py``). A slit wider than the capsules lets the thread fall through
 the pad. A floor 0.4 mm under the surface (``wound_depth``: the edges apposed below a
 groove) keeps the capsules out of the slit's walls; 0 (the wound closed) leaves no
 groove. Both tie fewer squares with algorithm 3 (docs/status.md)."""
 
 CLEAR_DEPTH = 0.1e-3
-"""How deep a capsule leaving the stitch channel may still lie in a pad body when its
-contact with it is turned back on [m]. A capsule resting on the pad under a 0.5 N press
-sinks 0.02-0.03 mm into it (contactERP 0.4, 1 kHz); one deeper than this waits until it
-has come out (:meth:`Tissue._pass_through`)."""
+"""The depth to give :attr:`Tissue.clear_depth` to turn its wait on [m]: a capsule resting
+on the pad under a 0.5 N press sinks 0.02-0.03 mm into it (contactERP 0.4, 1 kHz), so one
+deeper than this is inside the pad. Off by default: it removed algorithm 3's two spikes
+with friction alone, but tied fewer squares, and one unperturbed run drew 16.71 N in its
+mirrored tighten (docs/status.md, "Contacts given back inside the pad")."""
 
 HOLE_RAMP = 1.0
 """Time over which the holes' hold is taken up once the stitch is made [s]."""
@@ -142,6 +143,10 @@ class Tissue:
     c_lateral: float = 0.2
     k_hole: float = 1500.0
     capture: float = 3e-3
+    clear_depth: float | None = None
+    """A capsule leaving the channel gets its contact with a pad body back only once it
+    lies no deeper than this in the body [m] (:data:`CLEAR_DEPTH`); None: at once, wherever
+    it is (the default, which every result was measured with)."""
     bodies: list[int] = field(default_factory=list)
     channel: FloatArray = field(default_factory=lambda: np.zeros((0, 3)))
     suture: Suture | None = None
@@ -199,8 +204,8 @@ class Tissue:
             wound_depth: how deep the wound stays open under the surface [m]: below it
                 a floor closes it (the edges apposed under the surface); None: open
                 through the pad. No floor without a gap.
-            **kwargs: ``f_static`` [N], ``f_viscous`` [N*s/m],
-                ``k_lateral`` [N/m], ``c_lateral`` [N*s/m], ``k_hole`` [N/m], ``capture`` [m].
+            **kwargs: ``f_static`` [N], ``f_viscous`` [N*s/m], ``k_lateral`` [N/m],
+                ``c_lateral`` [N*s/m], ``k_hole`` [N/m], ``capture`` [m], ``clear_depth`` [m].
 
         Raises:
             TissueError: a zero normal, coincident entry/exit, a non-positive depth, a
@@ -332,11 +337,12 @@ class Tissue:
     def _pass_through(self, index: int, through: bool) -> None:
         """Let thread capsule ``index`` pass through the pad (no collision), or not.
 
-        A capsule given its contacts back is given them body by body, and only once it lies
-        no deeper than :data:`CLEAR_DEPTH` in that body: until then the pair waits in
-        ``_clearing`` (see :meth:`_clear_passed`). A capsule that leaves the channel's set
-        while still inside the pad (the thread slipping a capsule through the stitch)
-        would otherwise be thrown out by the contact's penetration recovery in one step."""
+        With :attr:`clear_depth` set, a capsule given its contacts back is given them body
+        by body, and only once it lies no deeper than that in the body: until then the pair
+        waits in ``_clearing`` (see :meth:`_clear_passed`). Without it, a capsule that
+        leaves the channel's set while still inside the pad (the thread slipping a capsule
+        through the stitch) is thrown out by the contact's penetration recovery in one
+        step."""
         import pybullet as p
 
         sut = self.suture or self._tracked
@@ -348,7 +354,9 @@ class Tissue:
             if through:
                 self._clearing.discard((index, body))
                 enable = 0
-            elif p.getClosestPoints(body, capsule, -CLEAR_DEPTH, physicsClientId=c):
+            elif self.clear_depth is not None and p.getClosestPoints(
+                body, capsule, -self.clear_depth, physicsClientId=c
+            ):
                 self._clearing.add((index, body))
                 continue  # still inside the body: stays passable until it has come out
             else:
@@ -361,13 +369,14 @@ class Tissue:
 
     def _clear_passed(self, sut: Suture) -> None:
         """Give each waiting capsule (``_clearing``) its contact with a pad body once it
-        lies no deeper than :data:`CLEAR_DEPTH` in it."""
+        lies no deeper than :attr:`clear_depth` in it."""
         import pybullet as p
 
         c = self.client
+        depth = self.clear_depth if self.clear_depth is not None else 0.0
         for index, body in sorted(self._clearing):
             capsule = sut.bodies[index]
-            if not p.getClosestPoints(body, capsule, -CLEAR_DEPTH, physicsClientId=c):
+            if not p.getClosestPoints(body, capsule, -depth, physicsClientId=c):
                 p.setCollisionFilterPair(capsule, body, -1, -1, 1, physicsClientId=c)
                 self._clearing.discard((index, body))
 
