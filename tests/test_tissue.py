@@ -557,3 +557,16 @@ def test_by_default_a_capsule_that_leaves_the_channel_inside_the_pad_is_not_thro
     fastest, peak, _ = _cut_the_channel(None)
     assert fastest < 0.05
     assert peak < 0.05
+
+
+def test_a_negative_clear_depth_is_refused() -> None:
+    import pybullet as p
+
+    c = p.connect(p.DIRECT)
+    try:
+        with pytest.raises(TissueError, match="clear_depth"):
+            Tissue.create(
+                c, (0.0, 0.0, 0.0), (0.0, -4e-3, 0.0), (0.0, 4e-3, 0.0), clear_depth=-1e-4
+            )
+    finally:
+        p.disconnect(physicsClientId=c)

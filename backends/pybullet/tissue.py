@@ -81,13 +81,13 @@ WOUND_GAP = 1e-3
 thread collides as capsules 1.8 mm thick (``SutureParams.collision_radius``), six times
 the 2-0 thread's 0.3 mm, so a capsule pressed down into a 1 mm slit is pinched between
 the two static halves, about 1 mm deep in each: the contacts then hold it with tens of
-newtons, and the joints beside it read a tension no pull made. Algorithm 3's spikes over
-the limit came from capsules thrown into the slit when they got their contacts back
-inside a half (:attr:`Tissue.clear_depth` makes them wait); a press alone still pinches
-one (``tests/test_tissue.py``). A slit wider than the capsules lets the thread fall through
-the pad. A floor 0.4 mm under the surface (``wound_depth``: the edges apposed below a
-groove) keeps the capsules out of the slit's walls; 0 (the wound closed) leaves no
-groove. Both tie fewer squares with algorithm 3 (docs/status.md)."""
+newtons, and the joints beside it read a tension no pull made. On algorithm 3's draw 1
+with friction alone (14.09 N), a capsule got there when it got its contacts back inside
+a half and was thrown out (:attr:`Tissue.clear_depth` makes such capsules wait); a
+press alone still pinches one (``tests/test_tissue.py``). A slit wider than the capsules
+lets the thread fall through the pad. A floor 0.4 mm under the surface (``wound_depth``:
+the edges apposed below a groove) keeps the capsules out of the slit's walls; 0 (the
+wound closed) leaves no groove. Both tie fewer squares with algorithm 3 (docs/status.md)."""
 
 CLEAR_DEPTH = 0.1e-3
 """The depth to give :attr:`Tissue.clear_depth` to turn its wait on [m]: a capsule resting
@@ -209,8 +209,8 @@ class Tissue:
 
         Raises:
             TissueError: a zero normal, coincident entry/exit, a non-positive depth, a
-                wound gap that is negative or not narrower than the pad, or a wound depth
-                outside the pad's thickness.
+                wound gap that is negative or not narrower than the pad, a wound depth
+                outside the pad's thickness, or a negative clear depth.
         """
         import pybullet as p
 
@@ -226,6 +226,9 @@ class Tissue:
             raise TissueError("depth", depth, "must be > 0 [m]")
         if not 0 <= wound_gap < size[0]:
             raise TissueError("wound_gap", wound_gap, f"must be in [0, {size[0]:g}) [m]")
+        clear_depth = kwargs.get("clear_depth")
+        if clear_depth is not None and not clear_depth >= 0:
+            raise TissueError("clear_depth", clear_depth, "must be >= 0 [m] or None")
         if wound_depth is not None and not 0 < wound_depth < size[2]:
             raise TissueError(
                 "wound_depth", wound_depth, f"must be in (0, {size[2]:g}) [m] or None"
