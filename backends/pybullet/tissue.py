@@ -372,14 +372,14 @@ class Tissue:
 
     def _clear_passed(self, sut: Suture) -> None:
         """Give each waiting capsule (``_clearing``) its contact with a pad body once it
-        lies no deeper than :attr:`clear_depth` in it."""
+        lies no deeper than :attr:`clear_depth` in it (at once if the wait was turned off)."""
         import pybullet as p
 
         c = self.client
-        depth = self.clear_depth if self.clear_depth is not None else 0.0
+        depth = self.clear_depth
         for index, body in sorted(self._clearing):
             capsule = sut.bodies[index]
-            if not p.getClosestPoints(body, capsule, -depth, physicsClientId=c):
+            if depth is None or not p.getClosestPoints(body, capsule, -depth, physicsClientId=c):
                 p.setCollisionFilterPair(capsule, body, -1, -1, 1, physicsClientId=c)
                 self._clearing.discard((index, body))
 
