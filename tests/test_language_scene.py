@@ -80,6 +80,11 @@ def test_usp_zero_written_as_a_number() -> None:
         {"robots": {"a": {"tool": "stitcher"}, "b": {"tool": "grasper", "grip_force": 0}}},
         {"robots": {"a": {"tool": "stitcher"}, "b": {"tool": "grasper", "grip_force": "8 N"}}},
         {"robots": {"a": {"tool": "stitcher"}, "b": {"tool": "grasper", "grip_force": "3 mm"}}},
+        # the wound's opening: a length, not negative
+        {"tissue": {"type": "skin", "wound": {"start": [0, 0, 0], "end": [0.01, 0, 0],
+                                              "gap": "-1 mm"}}},
+        {"tissue": {"type": "skin", "wound": {"start": [0, 0, 0], "end": [0.01, 0, 0],
+                                              "gap": "1 N"}}},
     ],
 )  # fmt: skip
 def test_bad_scenes_are_rejected(changes: dict[str, object]) -> None:
@@ -97,3 +102,14 @@ def test_grip_force_defaults_to_a_fraction_of_the_tension_limit() -> None:
         "endobot_2": {"tool": "grasper", "grip_force": "5 N"},
     }
     assert Scene.model_validate(_scene(robots=robots)).grip_force("endobot_2") == 5.0
+
+
+@pytest.mark.parametrize(("gap", "expected"), [(None, None), ("0 mm", 0.0), ("1.5 mm", 1.5e-3)])
+def test_the_wounds_opening_is_a_length_or_left_to_the_simulator(
+    gap: str | None, expected: float | None
+) -> None:
+    wound: dict[str, object] = {"start": [0, 0, 0], "end": ["1 cm", 0, 0]}
+    if gap is not None:
+        wound["gap"] = gap
+    scene = Scene.model_validate(_scene(tissue={"type": "skin", "wound": wound}))
+    assert scene.tissue.wound.gap == (None if expected is None else pytest.approx(expected))

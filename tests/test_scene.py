@@ -470,11 +470,25 @@ def test_removed_posts_leave_the_world_once() -> None:
         be.close()
 
 
-@pytest.mark.parametrize(("gap", "depth"), [(None, None), (0.0, None), (1e-3, 0.4e-3)])
-def test_the_backends_wound_parts_the_pads_halves(gap: float | None, depth: float | None) -> None:
+@pytest.mark.parametrize(
+    ("gap", "depth", "scene_gap", "expected"),
+    [
+        (None, None, None, None),
+        (0.0, None, None, 0.0),
+        (1e-3, 0.4e-3, None, 1e-3),
+        # the scene's tissue.wound.gap, unless the backend is given its own
+        (None, None, 0.0, 0.0),
+        (None, None, 0.5e-3, 0.5e-3),
+        (1e-3, None, 0.0, 1e-3),
+    ],
+)
+def test_the_backends_wound_parts_the_pads_halves(
+    gap: float | None, depth: float | None, scene_gap: float | None, expected: float | None
+) -> None:
     """The backend's ``wound_gap`` and ``wound_depth`` reach the pad: its two halves stand
     that far apart across the wound (PyBullet's own bounding boxes), 1 mm by default, and
-    a floor fills the wound from that depth down."""
+    a floor fills the wound from that depth down. Without the backend's ``wound_gap``,
+    the scene's ``tissue.wound.gap`` sets it."""
     import pybullet as p
 
     from backends.pybullet.backend import StitchedSurgicalPyBulletBackend
@@ -483,6 +497,11 @@ def test_the_backends_wound_parts_the_pads_halves(gap: float | None, depth: floa
     from suture_engine.language.loader import load_procedure
 
     model = load_procedure(ROOT / "procedures" / "square-knot.yaml").scene
+    assert model.tissue.wound.gap is None  # the bundled scene leaves it to the pad
+    if scene_gap is not None:
+        wound = model.tissue.wound.model_copy(update={"gap": scene_gap})
+        tissue = model.tissue.model_copy(update={"wound": wound})
+        model = model.model_copy(update={"tissue": tissue})
     be = StitchedSurgicalPyBulletBackend(wound_gap=gap, wound_depth=depth)
     try:
         be.reset(model, 0)
@@ -492,7 +511,7 @@ def test_the_backends_wound_parts_the_pads_halves(gap: float | None, depth: floa
         halves = sorted((b for b in boxes if b[1][2] > -1e-6), key=lambda box: box[0][1])
         assert len(halves) == 2
         width = halves[1][0][1] - halves[0][1][1]
-        assert width == pytest.approx(WOUND_GAP if gap is None else gap, abs=1e-6)
+        assert width == pytest.approx(WOUND_GAP if expected is None else expected, abs=1e-6)
         floors = [b for b in boxes if b[1][2] <= -1e-6]
         if depth is None:
             assert floors == []

@@ -158,9 +158,9 @@ class PyBulletBackend:
             scene); 0, the default, is the limp thread the knot physics is tuned with.
         suture_stiffness_scale: perturbation: EI times this factor [-].
         wound_gap: the wound's width between the tissue pad's two halves, as the thread's
-            contacts meet it [m] (surgical scene; None:
-            :data:`backends.pybullet.tissue.WOUND_GAP`, 1 mm, which pinches the thread's
-            1.8 mm collision capsules; 0 closes the wound: see there).
+            contacts meet it [m] (surgical scene; None: the scene's ``tissue.wound.gap``,
+            else :data:`backends.pybullet.tissue.WOUND_GAP`, 1 mm, which pinches the
+            thread's 1.8 mm collision capsules; 0 closes the wound: see there).
         wound_depth: how deep the wound stays open under the surface [m], a floor below
             (surgical scene; None: open through the pad).
         pad_clear_depth: a thread capsule leaving the stitch channel inside the pad gets
@@ -830,8 +830,13 @@ class PyBulletBackend:
             self.scene.tissue.clear_depth = self.pad_clear_depth
 
     def _wound(self) -> dict[str, float]:
-        """The ``wound_gap`` and ``wound_depth`` keywords for the scene's pads, as given."""
-        given = {"wound_gap": self.wound_gap, "wound_depth": self.wound_depth}
+        """The ``wound_gap`` and ``wound_depth`` keywords for the scene's pads, as given: the
+        backend's ``wound_gap``, else the scene's ``tissue.wound.gap``, else the pad's own."""
+        gap = self.wound_gap
+        if gap is None:
+            tissue = getattr(self._scene_model, "tissue", None)
+            gap = getattr(getattr(tissue, "wound", None), "gap", None)
+        given = {"wound_gap": gap, "wound_depth": self.wound_depth}
         return {k: float(v) for k, v in given.items() if v is not None}
 
     def close(self) -> None:

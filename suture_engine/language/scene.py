@@ -143,6 +143,11 @@ class Wound(_Model):
     """One end of the wound [m]."""
     end: Position
     """The other end of the wound [m]."""
+    gap: Length | None = Field(default=None, ge=0.0)
+    """The wound's opening between its two edges at the surface [m]; 0: the edges apposed.
+    ``None``: the simulator's default (the PyBullet pad's 1 mm slit,
+    :data:`backends.pybullet.tissue.WOUND_GAP`). A simulator may refuse an opening its
+    tissue cannot hold."""
 
 
 class Tissue(_Model):
