@@ -938,3 +938,41 @@ def test_the_aligned_mirrored_tighten_stops_at_a_lower_guard() -> None:
         proc: Any = load_procedure(PROC, params=params)
         assert compile_procedure(proc).steps["tighten"].enabled
         assert proc.states["tighten"].params.until_tension == pytest.approx(guard), params
+
+
+def test_the_lay_pull_draws_the_mirrored_tail_towards_the_entrys_side() -> None:
+    """``lay_pull`` turns only the aligned mirrored tighten into the square's securing pull:
+    40 mm along world -y (the entry lies at -y from the exit) to 0.6 N. Every other throw,
+    and that one without it, keeps its own move."""
+    second = {"second": True, "mirror": True, "stitch": False, "align_mirror": True}
+    cases = [
+        ({**second, "lay_pull": True}, (0.0, -0.040, 0.004), 0.6),
+        (second, (0.025, 0.0, 0.004), 0.3),
+        ({**second, "align_mirror": False, "lay_pull": True}, (0.025, 0.0, 0.004), 0.5),
+        ({"stitch": False, "lay_pull": True}, (0.025, 0.0, 0.004), 0.5),
+        ({"stitch": False, "turns": 2, "lay_pull": True}, (0.0, -0.020, 0.004), 1.5),
+    ]
+    for params, target, guard in cases:
+        proc: Any = load_procedure(PROC, params=params)
+        move = proc.states["tighten"].params
+        assert move.relative_to == "grasper"
+        assert move.target == pytest.approx(target), params
+        assert move.until_tension == pytest.approx(guard), params
+    # the scene's entry and exit of the default stitch: the pull runs from exit to entry
+    scene = load_procedure(PROC).scene
+    entry, exit_ = scene.tissue.points["entry_2"], scene.tissue.points["exit_2"]
+    assert entry[1] < exit_[1] and entry[0] == exit_[0]
+
+
+def test_the_square_knot_passes_the_lay_pull_to_its_mirrored_throw() -> None:
+    from suture_engine.runtime.run import load_plan
+
+    for sets, target in [
+        (["algorithm=3", "lay_pull=true"], (0.0, -0.040, 0.004)),
+        (["algorithm=3"], (0.025, 0.0, 0.004)),
+    ]:
+        _, plan = load_plan(PROC.parent / "square-knot.yaml", sets)
+        mirrored: Any = plan.steps["mirrored-knot.tighten"].make_skill().params
+        first: Any = plan.steps["simple-knot.tighten"].make_skill().params
+        assert mirrored.target == pytest.approx(target), sets
+        assert first.target == pytest.approx((0.025, 0.0, 0.004)), sets
