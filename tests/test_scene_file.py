@@ -163,3 +163,38 @@ def test_an_inline_scene_that_extends_is_located_in_the_procedure(tmp_path: Path
     assert [(Path(p.file).name, p.line, p.path) for p in problems] == [
         ("p.yaml", 5, "scene.suture.length")
     ]
+
+
+@pytest.mark.parametrize(
+    "base", ["bench-square", "bench-square-posts", "bench-square-stitch", "bench-bent-tip",
+             "bench-bent-tip-posts"],
+)  # fmt: skip
+def test_each_closed_wound_scene_is_its_base_with_the_edges_apposed(base: str) -> None:
+    """``<base>-closed.yaml`` changes only the wound's opening (to 0) and the name."""
+    open_ = load_scene(SCENES / f"{base}.yaml")
+    closed = load_scene(SCENES / f"{base}-closed.yaml")
+    assert open_.tissue.wound.gap is None  # the pad's own 1 mm slit
+    assert closed.tissue.wound.gap == 0.0
+    assert closed.name == f"{base}-closed"
+    for field in type(open_).model_fields:
+        if field not in ("name", "tissue"):
+            assert getattr(closed, field) == getattr(open_, field), field
+    assert closed.tissue.model_dump(exclude={"wound"}) == open_.tissue.model_dump(exclude={"wound"})
+    assert closed.tissue.wound.start == open_.tissue.wound.start
+    assert closed.tissue.wound.end == open_.tissue.wound.end
+
+
+@pytest.mark.parametrize("algorithm", [1, 2, 3])
+@pytest.mark.parametrize("register", [False, True])
+def test_the_square_knot_takes_the_closed_scene_with_wound_closed(
+    algorithm: int, register: bool
+) -> None:
+    from suture_engine.language.loader import load_procedure
+
+    params = {"algorithm": algorithm, "register": register}
+    slit = load_procedure(ROOT / "procedures" / "square-knot.yaml", params=params).scene
+    closed = load_procedure(
+        ROOT / "procedures" / "square-knot.yaml", params={**params, "wound": "closed"}
+    ).scene
+    assert closed.name == f"{slit.name}-closed"
+    assert (slit.tissue.wound.gap, closed.tissue.wound.gap) == (None, 0.0)
