@@ -263,6 +263,10 @@ class Row(NamedTuple):
     ``peak_true_tension_N``; NaN when the run has none). ``max_tension_N`` is the base
     sensors' estimate, which the tools meeting can raise and a pinch between them can
     hide: the tension limit is checked against this one."""
+    knot_lay: str = ""
+    """How the knot lies (the summary's ``lay``: ``square`` when its post strand is
+    straight, ``half-hitches`` when not, Fig. 7.4; '' when none): a square that lies as
+    half hitches still counts as a square."""
 
 
 def make_jobs(
@@ -334,6 +338,17 @@ def knot_type(knot: Any) -> str:
     if isinstance(knot, list) and knot:
         types = {knot_type(k) for k in knot}
         return types.pop() if len(types) == 1 else "mixed"
+    return ""
+
+
+def knot_lay(knot: Any) -> str:
+    """How a summary's ``knot`` entry lies (its ``lay``; '' when none). A list counts only
+    when every knot lies the same way ('mixed' when not)."""
+    if isinstance(knot, Mapping):
+        return str(knot.get("lay") or "")
+    if isinstance(knot, list) and knot:
+        lays = {knot_lay(k) for k in knot}
+        return lays.pop() if len(lays) == 1 else "mixed"
     return ""
 
 
@@ -423,8 +438,20 @@ def run_one(job: Job) -> Row:
         job.algorithm, job.run, job.seed, s.outcome, kt, ok,
         float(s.max_tension_N), float(s.sim_time_s), time.perf_counter() - start, *common, "",
         fault, path_digest(Path(job.out_dir) / "trace.mcap"),
-        float(s.metrics.get("peak_true_tension_N", math.nan)),
+        float(s.metrics.get("peak_true_tension_N", math.nan)), knot_lay(s.knot),
     )  # fmt: skip
+
+
+def square_lays(rows: Sequence[Row]) -> dict[int, dict[str, int]]:
+    """How the successful runs' knots lie, per algorithm (``lay``: ``square``,
+    ``half-hitches``, ``-`` when the row has none, e.g. one read from an older table);
+    algorithms without a success are absent."""
+    out: dict[int, dict[str, int]] = {}
+    for alg in sorted({r.algorithm for r in rows}):
+        lays = Counter(r.knot_lay or "-" for r in rows if r.algorithm == alg and r.success)
+        if lays:
+            out[alg] = dict(lays.most_common())
+    return out
 
 
 def true_peaks(rows: Sequence[Row]) -> dict[int, tuple[float, int, float]]:
@@ -532,9 +559,9 @@ def read_csv(path: Path) -> list[Row]:
         return []
     with path.open(newline="", encoding="utf-8") as fh:
         table = list(csv.reader(fh))
-    # a table written before the last_fault, path or peak_true_tension_N column reads
-    # with them empty (NaN)
-    if not table or tuple(table[0]) not in (Row._fields[: len(Row._fields) - k] for k in range(4)):
+    # a table written before the last_fault, path, peak_true_tension_N or knot_lay column
+    # reads with them empty (NaN)
+    if not table or tuple(table[0]) not in (Row._fields[: len(Row._fields) - k] for k in range(5)):
         raise ValueError(f"{path}: not a results table (header {table[:1]})")
     fields = tuple(table[0])
     rows = []
@@ -776,6 +803,8 @@ def main(argv: Sequence[str]) -> int:
         )
     for alg, steps in stops(rows).items():
         print(f"algorithm {alg}, where the failed runs stopped: {steps}")
+    for alg, lays in square_lays(rows).items():
+        print(f"algorithm {alg}, how the successes lie: {lays}")
     for alg, (peak, run, estimate) in true_peaks(rows).items():
         print(
             f"algorithm {alg}, true tension peak {peak:.2f} N (run {run}); "

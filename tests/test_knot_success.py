@@ -229,7 +229,7 @@ def test_a_table_written_before_the_last_fault_column_reads_with_it_empty(
     tmp_path: Path,
 ) -> None:
     path = tmp_path / "results.csv"
-    header = ",".join(ks.Row._fields[:-3])  # without last_fault (path, true peak)
+    header = ",".join(ks.Row._fields[:-4])  # without last_fault (path, true peak, lay)
     path.write_text(header + "\n2,3,1695199924,failed,unknot,False,1.59,85.35,137.5,1.0,1.0,0.0,\n")
     (row,) = ks.read_csv(path)
     assert (row.run, row.outcome, row.last_fault) == (3, "failed", "")
@@ -354,7 +354,7 @@ def test_a_table_written_before_the_path_column_reads_with_it_empty(tmp_path: Pa
     rows = [_row(2, True)._replace(last_fault="x: y", path="abc", peak_true_tension_N=0.5)]
     ks.write_csv(rows, path)
     lines = path.read_text().splitlines()
-    cut = [",".join(line.split(",")[:-2]) for line in lines]  # drop path (and true peak)
+    cut = [",".join(line.split(",")[:-3]) for line in lines]  # drop path (true peak, lay)
     path.write_text("\n".join(cut) + "\n")
     (row,) = ks.read_csv(path)
     assert (row.last_fault, row.path) == ("x: y", "")
@@ -363,9 +363,11 @@ def test_a_table_written_before_the_path_column_reads_with_it_empty(tmp_path: Pa
 
 def test_a_table_written_before_the_true_peak_column_reads_it_as_nan(tmp_path: Path) -> None:
     path = tmp_path / "results.csv"
-    ks.write_csv([_row(2, True)._replace(last_fault="x: y", path="abc")], path)
-    lines = path.read_text().splitlines()
-    path.write_text("\n".join(",".join(line.split(",")[:-1]) for line in lines) + "\n")
+    ks.write_csv(
+        [_row(2, True)._replace(last_fault="x: y", path="abc", peak_true_tension_N=0.5)], path
+    )
+    lines = path.read_text().splitlines()  # drop the true peak (and the lay)
+    path.write_text("\n".join(",".join(line.split(",")[:-2]) for line in lines) + "\n")
     (row,) = ks.read_csv(path)
     assert (row.last_fault, row.path) == ("x: y", "abc")
     assert math.isnan(row.peak_true_tension_N)
@@ -401,3 +403,31 @@ def test_command_line_refuses_a_wound_gap_it_cannot_give(bad: list[str]) -> None
     with pytest.raises(SystemExit) as err:
         ks.main(["--algorithms", "3", "--seeds", "1", *bad])
     assert err.value.code == 2
+
+
+def test_the_knots_lay_is_read_from_the_summary_and_counted_over_the_successes(
+    tmp_path: Path,
+) -> None:
+    assert ks.knot_lay({"type": "square", "lay": "half-hitches"}) == "half-hitches"
+    assert ks.knot_lay([{"lay": "square"}, {"lay": "square"}]) == "square"
+    assert ks.knot_lay([{"lay": "square"}, {"lay": "half-hitches"}]) == "mixed"
+    assert ks.knot_lay(None) == ks.knot_lay({"type": "unknot"}) == ""
+
+    def row(run: int, ok: bool, lay: str) -> ks.Row:
+        return ks.Row(3, run, run, "succeeded", "square", ok, 1.0, 1.0, 1.0, 1.0, 1.0, 0.0,
+                      "", "", "", 1.0, lay)  # fmt: skip
+
+    rows = [row(0, True, "square"), row(1, True, "half-hitches"), row(2, True, "square"),
+            row(3, False, "half-hitches"), row(4, True, "")]  # fmt: skip
+    assert ks.square_lays(rows) == {3: {"square": 2, "half-hitches": 1, "-": 1}}
+    assert ks.square_lays([row(0, False, "square")]) == {}
+    # the column survives the table
+    path = tmp_path / "results.csv"
+    ks.write_csv(rows, path)
+    assert [r.knot_lay for r in ks.read_csv(path)] == ["square", "half-hitches", "square",
+                                                        "half-hitches", ""]  # fmt: skip
+    # a table written before it reads with the lay empty
+    text = path.read_text().splitlines()
+    cut = [",".join(line.split(",")[:-1]) for line in text]
+    path.write_text("\n".join(cut) + "\n")
+    assert [r.knot_lay for r in ks.read_csv(path)] == [""] * 5
