@@ -483,7 +483,9 @@ def test_a_thread_pressed_into_the_default_wound_slides_along_it_under_its_pull(
 @pytest.mark.parametrize(
     ("gap", "depth", "field"),
     [(-1e-3, None, "wound_gap"), (0.08, None, "wound_gap"), (1e-3, 0.0, "wound_depth"),
-     (1e-3, 0.01, "wound_depth")],
+     (1e-3, 0.01, "wound_depth"),
+     # the bites 4 mm either side of the wound: an opening wider than 8 mm leaves them in it
+     (8.2e-3, None, "wound_gap.*inside its 8.2 mm opening")],
 )  # fmt: skip
 def test_a_wound_outside_the_pad_is_refused(gap: float, depth: float | None, field: str) -> None:
     import pybullet as p

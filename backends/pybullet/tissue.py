@@ -226,6 +226,17 @@ class Tissue:
             raise TissueError("depth", depth, "must be > 0 [m]")
         if not 0 <= wound_gap < size[0]:
             raise TissueError("wound_gap", wound_gap, f"must be in [0, {size[0]:g}) [m]")
+        ex0 = across / np.linalg.norm(across)
+        c0 = np.asarray(center, dtype=float)
+        inside = min(abs(float(ex0 @ (a - c0))), abs(float(ex0 @ (b - c0))))
+        if inside < wound_gap / 2:
+            raise TissueError(
+                "wound_gap",
+                wound_gap,
+                f"leaves a bite in the opening: the entry or exit point lies "
+                f"{inside * 1e3:.3g} mm from the wound's middle, inside its "
+                f"{wound_gap * 1e3:.3g} mm opening",
+            )
         clear_depth = kwargs.get("clear_depth")
         if clear_depth is not None and not clear_depth >= 0:
             raise TissueError("clear_depth", clear_depth, "must be >= 0 [m] or None")

@@ -146,8 +146,8 @@ class Wound(_Model):
     gap: Length | None = Field(default=None, ge=0.0)
     """The wound's opening between its two edges at the surface [m]; 0: the edges apposed.
     ``None``: the simulator's default (the PyBullet pad's 1 mm slit,
-    :data:`backends.pybullet.tissue.WOUND_GAP`). A simulator may refuse an opening its
-    tissue cannot hold."""
+    :data:`backends.pybullet.tissue.WOUND_GAP`). A simulator refuses an opening that leaves
+    a bite's entry or exit point in it (the PyBullet pad does, when the run starts)."""
 
 
 class Tissue(_Model):
