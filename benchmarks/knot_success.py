@@ -328,28 +328,27 @@ def parse_runs(text: str, seeds: int) -> set[int]:
     return chosen
 
 
-def knot_type(knot: Any) -> str:
-    """The ground-truth knot type of a summary's ``knot`` entry ('' when none).
-
-    A list (one entry per knot) counts only when every knot has the same type.
-    """
+def _agreed(knot: Any, key: str) -> str:
+    """Field ``key`` of a summary's ``knot`` entry ('' when none). A list (one entry per
+    knot) gives it only when every knot has the same; 'mixed' when not."""
     if isinstance(knot, Mapping):
-        return str(knot.get("type") or "")
+        return str(knot.get(key) or "")
     if isinstance(knot, list) and knot:
-        types = {knot_type(k) for k in knot}
-        return types.pop() if len(types) == 1 else "mixed"
+        values = {_agreed(k, key) for k in knot}
+        return values.pop() if len(values) == 1 else "mixed"
     return ""
+
+
+def knot_type(knot: Any) -> str:
+    """The ground-truth knot type of a summary's ``knot`` entry ('' when none; a list
+    counts only when every knot has the same type)."""
+    return _agreed(knot, "type")
 
 
 def knot_lay(knot: Any) -> str:
-    """How a summary's ``knot`` entry lies (its ``lay``; '' when none). A list counts only
-    when every knot lies the same way ('mixed' when not)."""
-    if isinstance(knot, Mapping):
-        return str(knot.get("lay") or "")
-    if isinstance(knot, list) and knot:
-        lays = {knot_lay(k) for k in knot}
-        return lays.pop() if len(lays) == 1 else "mixed"
-    return ""
+    """How a summary's ``knot`` entry lies (its ``lay``; '' when none; a list counts only
+    when every knot lies the same way, 'mixed' when not)."""
+    return _agreed(knot, "lay")
 
 
 def binds_stitch(knot: Any) -> bool:

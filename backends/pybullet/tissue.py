@@ -226,9 +226,9 @@ class Tissue:
             raise TissueError("depth", depth, "must be > 0 [m]")
         if not 0 <= wound_gap < size[0]:
             raise TissueError("wound_gap", wound_gap, f"must be in [0, {size[0]:g}) [m]")
-        ex0 = across / np.linalg.norm(across)
-        c0 = np.asarray(center, dtype=float)
-        inside = min(abs(float(ex0 @ (a - c0))), abs(float(ex0 @ (b - c0))))
+        ex = across / np.linalg.norm(across)
+        c = np.asarray(center, dtype=float)
+        inside = min(abs(float(ex @ (a - c))), abs(float(ex @ (b - c))))
         if inside < wound_gap / 2:
             raise TissueError(
                 "wound_gap",
@@ -256,11 +256,9 @@ class Tissue:
         )
         s = np.linspace(0.0, 1.0, 25)
         self.channel = a + s[:, None] * (b - a) - depth * sin(np.pi * s)[:, None] * n
-        ex = across / np.linalg.norm(across)
         ey = np.cross(n, ex)
         rot = np.column_stack([ex, ey, n])
         quat = _quat_from_matrix(rot)
-        c = np.asarray(center, dtype=float)
         half = np.array([size[0] / 4 - wound_gap / 4, size[1] / 2, size[2] / 2])
         col = p.createCollisionShape(p.GEOM_BOX, halfExtents=half.tolist(), physicsClientId=client)
         vis = p.createVisualShape(
