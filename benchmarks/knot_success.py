@@ -38,7 +38,8 @@ Usage::
     python benchmarks/knot_success.py [--seeds 20] [--algorithms 1,2,3] [--max-time 300]
         [--workers 2] [--out runs/knot-success] [--backend pybullet-surgical]
         [--base-seed 0] [--no-perturb] [--bending-stiffness EI] [--wound-gap MM]
-        [--wound-depth MM] [--pad-clear-depth MM] [--single] [--resume]
+        [--wound-depth MM] [--pad-clear-depth MM]
+        [--thread-contact-stiffness N_PER_M] [--single] [--resume]
         [--only base,friction,stiffness] [--base-part all|common|relative]
         [--set NAME=VALUE ...] [--runs 1,2,5-9]
 
@@ -657,6 +658,13 @@ def main(argv: Sequence[str]) -> int:
         "once; 0.1 turns the wait on); give --resume only with the same value",
     )
     ap.add_argument(
+        "--thread-contact-stiffness",
+        type=float,
+        default=None,
+        help="every contact of the thread's capsules a spring of this stiffness [N/m] "
+        "(damping 5 N*s/m; default: rigid contacts); give --resume only with the same value",
+    )
+    ap.add_argument(
         "--runs",
         default=None,
         help="run only these runs of the --seeds draws, e.g. 1,2,5-9 (each keeps its own "
@@ -729,6 +737,18 @@ def main(argv: Sequence[str]) -> int:
             bound = "> 0" if key == "wound_depth" else ">= 0"
             ap.error(f"{flag}: a length {bound} [mm], got {mm}")
         jobs = [j._replace(options={**j.options, key: mm * 1e-3}) for j in jobs]
+    stiffness = args.thread_contact_stiffness
+    if stiffness is not None:
+        if "thread_contact_stiffness" not in accepted:
+            ap.error(
+                f"--thread-contact-stiffness: backend {args.backend} takes no "
+                "thread_contact_stiffness"
+            )
+        if not stiffness > 0:
+            ap.error(f"--thread-contact-stiffness: a stiffness > 0 [N/m], got {stiffness}")
+        jobs = [
+            j._replace(options={**j.options, "thread_contact_stiffness": stiffness}) for j in jobs
+        ]
     what = "knot-algorithm-N.yaml (one throw)" if args.single else "square-knot.yaml"
     if args.set:
         what += " --set " + " --set ".join(args.set)
@@ -738,6 +758,8 @@ def main(argv: Sequence[str]) -> int:
         what += f", wound open {args.wound_depth:g} mm deep"
     if args.pad_clear_depth is not None:
         what += f", pad contacts back within {args.pad_clear_depth:g} mm"
+    if stiffness is not None:
+        what += f", thread contacts {stiffness:g} N/m"
     runs = f"{args.seeds} run(s)" if args.runs is None else f"runs {args.runs} of {args.seeds}"
     print(
         f"{what} on {args.backend}: {runs} per algorithm "

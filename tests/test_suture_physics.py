@@ -671,6 +671,60 @@ def test_bending_stiffness_straightens_a_bent_thread() -> None:
         SutureParams(bending_stiffness=-1.0)
 
 
+def _pressed_depth(stiffness: float | None, force: float = 0.2) -> tuple[float, float]:
+    """A short thread's middle capsule pressed with ``force`` [N] onto a static crossing
+    capsule, gravity off: the contact's depth [m] and normal force [N] once settled."""
+    import pybullet as p
+
+    from backends.pybullet.suture import Suture, configure_physics, straight_path
+
+    c = p.connect(p.DIRECT)
+    try:
+        configure_physics(c)
+        p.setGravity(0, 0, 0, physicsClientId=c)
+        prm = SutureParams(length=0.012, n_segments=3, needle=False)
+        sut = Suture.create(c, straight_path((-0.006, 0, 0), (1, 0, 0), 0.012), prm)
+        if stiffness is not None:
+            sut.soften_contacts(stiffness, 5.0)
+        r = prm.collision_radius
+        shape = p.createCollisionShape(p.GEOM_CAPSULE, radius=r, height=0.01, physicsClientId=c)
+        bar = p.createMultiBody(
+            0, shape, -1, [0, 0, -2 * r], p.getQuaternionFromEuler([math.pi / 2, 0, 0]),
+            physicsClientId=c,
+        )  # fmt: skip
+        mid = sut.bodies[1]
+        # Ramp over 0.3 s, then hold 0.1 s. A thread balanced on a crossing capsule is
+        # an unstable equilibrium: it rolls off within the second after.
+        for i in range(400):
+            at = p.getBasePositionAndOrientation(mid, physicsClientId=c)[0]
+            push = [0.0, 0.0, -force * min(1.0, (i + 1) / 300)]
+            p.applyExternalForce(mid, -1, push, at, p.WORLD_FRAME, physicsClientId=c)
+            p.stepSimulation(physicsClientId=c)
+        (contact,) = p.getContactPoints(mid, bar, physicsClientId=c)
+        return -float(contact[8]), float(contact[9])
+    finally:
+        p.disconnect(physicsClientId=c)
+
+
+def test_soft_thread_contacts_yield_by_force_over_stiffness() -> None:
+    """Hooke's law, from the contact the simulator reports: with the thread's contacts
+    softened, a 0.2 N press sinks F / k deeper than the rigid contact does (which keeps
+    only the solver's slop), at k = 10 and 20 kN/m, and the contact carries the press."""
+    rigid, rigid_force = _pressed_depth(None)
+    assert rigid < 2e-5
+    assert rigid_force == pytest.approx(0.2, rel=0.02)
+    for k in (1e4, 2e4):
+        depth, force = _pressed_depth(k)
+        assert depth - rigid == pytest.approx(0.2 / k, rel=0.1)
+        assert force == pytest.approx(0.2, rel=0.02)
+    sut = Suture(client=0, params=SutureParams())
+    with pytest.raises(InvalidSutureParams) as err:
+        sut.soften_contacts(0.0, 5.0)
+    assert err.value.name == "contact_stiffness"
+    with pytest.raises(InvalidSutureParams):
+        sut.soften_contacts(1e4, -1.0)
+
+
 def test_thread_rests_on_the_stitchers_open_jaw() -> None:
     """With ``collide_with``, a thread laid on the empty jaw of a stitcher rests on it
     (4.4.1 step 4: the thread lays over the open jaw); without it, it falls through."""

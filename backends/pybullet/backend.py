@@ -167,6 +167,11 @@ class PyBulletBackend:
             its contacts with the pad back only once it lies no deeper than this in it [m]
             (surgical scene; :attr:`backends.pybullet.tissue.Tissue.clear_depth`; None, the
             default: at once, wherever it is).
+        thread_contact_stiffness: every contact of the thread's capsules becomes a
+            spring-damper of this stiffness [N/m] (surgical scene;
+            :meth:`backends.pybullet.suture.Suture.soften_contacts`); None, the default:
+            rigid contacts, which push an overlap out whatever force that takes.
+        thread_contact_damping: the damping of those contacts [N*s/m].
     """
 
     name = "pybullet"
@@ -198,6 +203,8 @@ class PyBulletBackend:
         wound_gap: float | None = None,
         wound_depth: float | None = None,
         pad_clear_depth: float | None = None,
+        thread_contact_stiffness: float | None = None,
+        thread_contact_damping: float = 5.0,
     ) -> None:
         self.gui = gui
         self.dt = dt
@@ -229,6 +236,18 @@ class PyBulletBackend:
                 self.name, f"pad_clear_depth must be >= 0 [m], got {pad_clear_depth}"
             )
         self.pad_clear_depth = pad_clear_depth
+        if thread_contact_stiffness is not None and not thread_contact_stiffness > 0.0:
+            raise BackendError(
+                self.name,
+                f"thread_contact_stiffness must be > 0 [N/m], got {thread_contact_stiffness}",
+            )
+        if not thread_contact_damping >= 0.0:
+            raise BackendError(
+                self.name,
+                f"thread_contact_damping must be >= 0 [N*s/m], got {thread_contact_damping}",
+            )
+        self.thread_contact_stiffness = thread_contact_stiffness
+        self.thread_contact_damping = thread_contact_damping
         self.scene: Any = None
         """The :class:`backends.pybullet.scene.Scene` when the surgical scene is built."""
         self._scene_model: Any = None
@@ -389,7 +408,7 @@ class PyBulletBackend:
                 if isinstance(tool, BentTipGrasper):
                     tool.set_bend(float(self.bend[0]), float(self.bend[1]))
         self.scene = built
-        self._configure_tissue()
+        self._configure_contacts()
         self.client = built.client
         if built.suture is not None:  # a freshly built scene always has its thread
             self._contact_diameter = 2.0 * float(built.suture.params.collision_radius)
@@ -822,12 +841,19 @@ class PyBulletBackend:
             )
         except SutureError as exc:
             raise BackendError(self.name, f"cannot load a suture: {exc}") from None
-        self._configure_tissue()
+        self._configure_contacts()
 
-    def _configure_tissue(self) -> None:
-        """Give the scene's tissue pad the backend's ``pad_clear_depth``."""
-        if self.scene is not None and self.scene.tissue is not None:
+    def _configure_contacts(self) -> None:
+        """Give the scene's tissue pad the backend's ``pad_clear_depth``, and its thread
+        the ``thread_contact_stiffness`` when given."""
+        if self.scene is None:
+            return
+        if self.scene.tissue is not None:
             self.scene.tissue.clear_depth = self.pad_clear_depth
+        if self.thread_contact_stiffness is not None and self.scene.suture is not None:
+            self.scene.suture.soften_contacts(
+                self.thread_contact_stiffness, self.thread_contact_damping
+            )
 
     def _wound(self) -> dict[str, float]:
         """The ``wound_gap`` and ``wound_depth`` keywords for the scene's pads, as given: the

@@ -703,6 +703,43 @@ class Suture:
             knot = (float(m[0]), float(m[1]), float(m[2]))
         return SutureGroundTruth(self.centerline(), self.tensions(), self.stretch(), knot, contacts)
 
+    def soften_contacts(self, stiffness: float, damping: float) -> None:
+        """Make every contact of the thread's capsules a spring-damper [N/m, N*s/m].
+
+        The capsules' collision radius is six times the real thread's (module doc), so the
+        outer 0.75 mm of each capsule is a sheath no real thread fills. Rigid contacts push
+        any overlap in it out at the contact ERP's rate whatever force that takes; where a
+        knot or a slit jams capsules into one another, that force goes into the chain's
+        joints and reads as a tension no tool applied (17.68 N in a knot drawn at 0.6 N).
+        A spring-damper contact costs at most ``stiffness`` times the overlap instead.
+
+        PyBullet combines the two bodies' values of a contact as springs in series and
+        dampers in parallel: a thread-on-thread contact gets ``stiffness / 2`` and
+        ``2 * damping``; a contact with a rigid body (tools, pad) ``stiffness`` and about
+        ``damping``. The needle keeps rigid contacts.
+
+        Args:
+            stiffness: each capsule's contact stiffness [N/m], > 0.
+            damping: each capsule's contact damping [N*s/m], >= 0.
+
+        Raises:
+            InvalidSutureParams: stiffness not > 0 or damping < 0.
+        """
+        import pybullet as p
+
+        if not stiffness > 0:
+            raise InvalidSutureParams("contact_stiffness", stiffness, "> 0 [N/m]")
+        if not damping >= 0:
+            raise InvalidSutureParams("contact_damping", damping, ">= 0 [N*s/m]")
+        for body in self.bodies:
+            p.changeDynamics(
+                body,
+                -1,
+                contactStiffness=float(stiffness),
+                contactDamping=float(damping),
+                physicsClientId=self.client,
+            )
+
     def park(self, at: Sequence[float]) -> None:
         """Take the thread out of play without removing its bodies: its joints and the
         needle's swage go, and every capsule and the needle become static and touch
