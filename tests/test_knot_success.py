@@ -396,6 +396,8 @@ def test_the_true_peak_is_reported_apart_from_the_estimate(tmp_path: Path) -> No
         ["--wound-gap", "2.5", "--backend", "ideal"],
         ["--pad-clear-depth", "-0.1"],
         ["--pad-clear-depth", "0.1", "--backend", "ideal"],
+        ["--thread-contact-stiffness", "0"],
+        ["--thread-contact-stiffness", "1e4", "--backend", "ideal"],
     ],
 )
 def test_command_line_refuses_a_wound_gap_it_cannot_give(bad: list[str]) -> None:

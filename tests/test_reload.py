@@ -264,3 +264,39 @@ def test_the_interrupted_suture_ties_three_square_knots_on_seed_12(tmp_path: Pat
     assert stitches["site"] == ["1", "2", "3"]
     assert stitches["spacing_mean_mm"] == pytest.approx(5.0, abs=0.25)
     assert summary.metrics["peak_true_tension_N"] < 0.5 * summary.tension_limit_N
+
+
+@pytest.mark.parametrize("stiffness", [None, 2e4])
+def test_the_backends_thread_contact_stiffness_reaches_every_thread_it_loads(
+    model, stiffness: float | None
+) -> None:  # type: ignore[no-untyped-def]
+    """PyBullet's own dynamics info of each capsule: the backend's option softens the
+    built thread's contacts and a reloaded one's; unset, the contacts stay rigid."""
+    import pybullet as p
+
+    be = StitchedSurgicalPyBulletBackend(thread_contact_stiffness=stiffness)
+
+    def contact_parameters() -> set[tuple[float, float]]:
+        assert be.scene is not None and be.scene.suture is not None
+        infos = [
+            p.getDynamicsInfo(b, -1, physicsClientId=be.client) for b in be.scene.suture.bodies
+        ]
+        return {(float(i[9]), float(i[8])) for i in infos}  # (stiffness, damping)
+
+    try:
+        be.reset(model, 0)
+        expected = {(stiffness, 5.0)} if stiffness is not None else {(-1.0, -1.0)}
+        assert contact_parameters() == expected
+        be.cut_suture()
+        be.load_suture("entry_1", "exit_1")
+        assert contact_parameters() == expected
+    finally:
+        be.close()
+
+
+@pytest.mark.parametrize(
+    "bad", [{"thread_contact_stiffness": 0.0}, {"thread_contact_damping": -1.0}]
+)
+def test_the_backend_refuses_a_thread_contact_it_cannot_build(bad: dict[str, float]) -> None:
+    with pytest.raises(BackendError, match=next(iter(bad))):
+        StitchedSurgicalPyBulletBackend(**bad)
