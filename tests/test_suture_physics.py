@@ -671,9 +671,12 @@ def test_bending_stiffness_straightens_a_bent_thread() -> None:
         SutureParams(bending_stiffness=-1.0)
 
 
-def _pressed_depth(stiffness: float | None, force: float = 0.2) -> tuple[float, float]:
+def _pressed_depth(
+    stiffness: float | None, force: float = 0.2, soft_bar: bool = False
+) -> tuple[float, float]:
     """A short thread's middle capsule pressed with ``force`` [N] onto a static crossing
-    capsule, gravity off: the contact's depth [m] and normal force [N] once settled."""
+    capsule (given the thread's contact stiffness and damping with ``soft_bar``), gravity
+    off: the contact's depth [m] and normal force [N] once settled."""
     import pybullet as p
 
     from backends.pybullet.suture import Suture, configure_physics, straight_path
@@ -692,6 +695,10 @@ def _pressed_depth(stiffness: float | None, force: float = 0.2) -> tuple[float, 
             0, shape, -1, [0, 0, -2 * r], p.getQuaternionFromEuler([math.pi / 2, 0, 0]),
             physicsClientId=c,
         )  # fmt: skip
+        if soft_bar and stiffness is not None:
+            p.changeDynamics(
+                bar, -1, contactStiffness=stiffness, contactDamping=5.0, physicsClientId=c
+            )
         mid = sut.bodies[1]
         # Ramp over 0.3 s, then hold 0.1 s. A thread balanced on a crossing capsule is
         # an unstable equilibrium: it rolls off within the second after.
@@ -709,7 +716,9 @@ def _pressed_depth(stiffness: float | None, force: float = 0.2) -> tuple[float, 
 def test_soft_thread_contacts_yield_by_force_over_stiffness() -> None:
     """Hooke's law, from the contact the simulator reports: with the thread's contacts
     softened, a 0.2 N press sinks F / k deeper than the rigid contact does (which keeps
-    only the solver's slop), at k = 10 and 20 kN/m, and the contact carries the press."""
+    only the solver's slop), at k = 10 and 20 kN/m, and the contact carries the press.
+    Two soft bodies meet as springs in series (as two capsules of the thread do): twice
+    as deep."""
     rigid, rigid_force = _pressed_depth(None)
     assert rigid < 2e-5
     assert rigid_force == pytest.approx(0.2, rel=0.02)
@@ -717,6 +726,8 @@ def test_soft_thread_contacts_yield_by_force_over_stiffness() -> None:
         depth, force = _pressed_depth(k)
         assert depth - rigid == pytest.approx(0.2 / k, rel=0.1)
         assert force == pytest.approx(0.2, rel=0.02)
+        both, _ = _pressed_depth(k, soft_bar=True)
+        assert both - rigid == pytest.approx(2 * 0.2 / k, rel=0.1)
     sut = Suture(client=0, params=SutureParams())
     with pytest.raises(InvalidSutureParams) as err:
         sut.soften_contacts(0.0, 5.0)
