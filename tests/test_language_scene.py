@@ -85,6 +85,11 @@ def test_usp_zero_written_as_a_number() -> None:
                                               "gap": "-1 mm"}}},
         {"tissue": {"type": "skin", "wound": {"start": [0, 0, 0], "end": [0.01, 0, 0],
                                               "gap": "1 N"}}},
+        # the thread's contacts: a positive stiffness, a damping not negative
+        {"suture": {"usp": "2-0", "length": 0.3, "contact_stiffness": 0}},
+        {"suture": {"usp": "2-0", "length": 0.3, "contact_stiffness": "10 N"}},
+        {"suture": {"usp": "2-0", "length": 0.3, "contact_stiffness": "10 kN/m",
+                    "contact_damping": "-1 N*s/m"}},
     ],
 )  # fmt: skip
 def test_bad_scenes_are_rejected(changes: dict[str, object]) -> None:
@@ -113,3 +118,13 @@ def test_the_wounds_opening_is_a_length_or_left_to_the_simulator(
         wound["gap"] = gap
     scene = Scene.model_validate(_scene(tissue={"type": "skin", "wound": wound}))
     assert scene.tissue.wound.gap == (None if expected is None else pytest.approx(expected))
+
+
+def test_the_threads_contacts_are_springs_in_units_or_left_rigid() -> None:
+    rigid = Scene.model_validate(_scene()).suture
+    assert (rigid.contact_stiffness, rigid.contact_damping) == (None, 5.0)
+    suture = {"usp": "2-0", "length": 0.3, "contact_stiffness": "10 kN/m",
+              "contact_damping": "2 N*s/m"}  # fmt: skip
+    soft = Scene.model_validate(_scene(suture=suture)).suture
+    assert soft.contact_stiffness == pytest.approx(1e4)
+    assert soft.contact_damping == pytest.approx(2.0)

@@ -300,3 +300,26 @@ def test_the_backends_thread_contact_stiffness_reaches_every_thread_it_loads(
 def test_the_backend_refuses_a_thread_contact_it_cannot_build(bad: dict[str, float]) -> None:
     with pytest.raises(BackendError, match=next(iter(bad))):
         StitchedSurgicalPyBulletBackend(**bad)
+
+
+def test_a_scenes_thread_contact_stiffness_reaches_the_thread_and_the_option_wins(
+    model,
+) -> None:  # type: ignore[no-untyped-def]
+    """The scene's ``suture.contact_stiffness`` and ``contact_damping`` soften the thread
+    (PyBullet's dynamics info); the backend's option, when given, wins."""
+    import pybullet as p
+
+    suture = model.suture.model_copy(update={"contact_stiffness": 3e4, "contact_damping": 2.0})
+    scene = model.model_copy(update={"suture": suture})
+    for options, expected in (({}, (3e4, 2.0)), ({"thread_contact_stiffness": 1e4}, (1e4, 5.0))):
+        be = StitchedSurgicalPyBulletBackend(**options)
+        try:
+            be.reset(scene, 0)
+            assert be.scene is not None and be.scene.suture is not None
+            infos = {
+                p.getDynamicsInfo(b, -1, physicsClientId=be.client)[8:10]
+                for b in be.scene.suture.bodies
+            }
+            assert infos == {(expected[1], expected[0])}
+        finally:
+            be.close()

@@ -170,8 +170,10 @@ class PyBulletBackend:
         thread_contact_stiffness: every contact of the thread's capsules becomes a
             spring-damper of this stiffness [N/m] (surgical scene;
             :meth:`backends.pybullet.suture.Suture.soften_contacts`); None, the default:
-            rigid contacts, which push an overlap out whatever force that takes.
-        thread_contact_damping: the damping of those contacts [N*s/m].
+            the scene's ``suture.contact_stiffness``, else rigid contacts, which push an
+            overlap out whatever force that takes.
+        thread_contact_damping: the damping of those contacts [N*s/m] (with
+            ``thread_contact_stiffness``).
     """
 
     name = "pybullet"
@@ -850,10 +852,21 @@ class PyBulletBackend:
             return
         if self.scene.tissue is not None:
             self.scene.tissue.clear_depth = self.pad_clear_depth
-        if self.thread_contact_stiffness is not None and self.scene.suture is not None:
-            self.scene.suture.soften_contacts(
-                self.thread_contact_stiffness, self.thread_contact_damping
-            )
+        contact = self._thread_contact()
+        if contact is not None and self.scene.suture is not None:
+            self.scene.suture.soften_contacts(*contact)
+
+    def _thread_contact(self) -> tuple[float, float] | None:
+        """The thread's contact stiffness [N/m] and damping [N*s/m]: the backend's
+        ``thread_contact_stiffness`` (with its damping), else the scene's
+        ``suture.contact_stiffness`` (with the scene's damping); None: rigid."""
+        if self.thread_contact_stiffness is not None:
+            return float(self.thread_contact_stiffness), float(self.thread_contact_damping)
+        suture = getattr(self._scene_model, "suture", None)
+        stiffness = getattr(suture, "contact_stiffness", None)
+        if stiffness is None:
+            return None
+        return float(stiffness), float(getattr(suture, "contact_damping", 5.0))
 
     def _wound(self) -> dict[str, float]:
         """The ``wound_gap`` and ``wound_depth`` keywords for the scene's pads, as given: the

@@ -225,6 +225,14 @@ class Suture(_Model):
     as a chain; at least 40 capsules are used). ``None``: 7.5 mm. Shorter capsules bend
     round smaller tools (a hook, a jaw) at a cost in physics time roughly proportional to
     their number."""
+    contact_stiffness: StiffnessUnit | None = Field(default=None, gt=0.0)
+    """Each simulated capsule's contact as a spring of this stiffness [N/m] (simulators
+    whose thread is thicker than the real one to keep strands from passing through each
+    other: a spring in that sheath costs at most its stiffness times the overlap, where a
+    rigid contact pushes an overlap out with whatever force it takes). Two capsules meet
+    as springs in series, at half of it. ``None``: rigid contacts."""
+    contact_damping: Damping = Field(default=5.0, ge=0.0)
+    """The damping of those contacts [N*s/m]; used with ``contact_stiffness`` only."""
 
     @field_validator("usp", mode="before")
     @classmethod
