@@ -68,6 +68,7 @@ def hold(knot: str, segments: int, stiffness: float, target: float, seconds: flo
     import pybullet as p
 
     from backends.pybullet.scene import build_scene, pull_ends
+    from backends.pybullet.suture import CONTACT_DAMPING
     from suture_engine.suture.topology import classify_knot
 
     scene = build_scene(
@@ -77,7 +78,7 @@ def hold(knot: str, segments: int, stiffness: float, target: float, seconds: flo
         suture = scene.suture
         assert suture is not None
         if stiffness > 0:
-            suture.soften_contacts(stiffness, 5.0)
+            suture.soften_contacts(stiffness, CONTACT_DAMPING)
         t0 = time.process_time()
         left, right = scene.tools["left"], scene.tools["right"]
         pulled = pull_ends(scene, left, right, target=target, hold=seconds, timeout=8 + seconds)

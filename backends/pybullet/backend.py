@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from backends.base import BackendError
+from backends.pybullet.suture import CONTACT_DAMPING
 from suture_engine.errors import SutureError
 from suture_engine.runtime.observation import (
     BackendEvent,
@@ -206,7 +207,7 @@ class PyBulletBackend:
         wound_depth: float | None = None,
         pad_clear_depth: float | None = None,
         thread_contact_stiffness: float | None = None,
-        thread_contact_damping: float = 5.0,
+        thread_contact_damping: float = CONTACT_DAMPING,
     ) -> None:
         self.gui = gui
         self.dt = dt
@@ -862,11 +863,11 @@ class PyBulletBackend:
         ``suture.contact_stiffness`` (with the scene's damping); None: rigid."""
         if self.thread_contact_stiffness is not None:
             return float(self.thread_contact_stiffness), float(self.thread_contact_damping)
-        suture = getattr(self._scene_model, "suture", None)
+        suture: Any = getattr(self._scene_model, "suture", None)
         stiffness = getattr(suture, "contact_stiffness", None)
         if stiffness is None:
             return None
-        return float(stiffness), float(getattr(suture, "contact_damping", 5.0))
+        return float(stiffness), float(suture.contact_damping)
 
     def _wound(self) -> dict[str, float]:
         """The ``wound_gap`` and ``wound_depth`` keywords for the scene's pads, as given: the

@@ -47,6 +47,7 @@ from suture_engine.arithmetic import cos, row_dot, sin
 from suture_engine.errors import SutureError
 
 __all__ = [
+    "CONTACT_DAMPING",
     "PHYSICS_RATE",
     "CapsuleFrame",
     "InvalidSutureParams",
@@ -62,6 +63,9 @@ __all__ = [
 
 PHYSICS_RATE = 1000.0
 """Physics rate the scene is built for [Hz] (the runtime's control rate)."""
+CONTACT_DAMPING = 5.0
+"""Damping of the thread's contacts made springs [N*s/m] (:meth:`Suture.soften_contacts`)
+when none is given; the language's ``suture.contact_damping`` defaults to the same."""
 
 _GRAVITY = 9.81
 _NEEDLE_SIM_MASS = 2e-3
