@@ -39,7 +39,7 @@ Usage::
         [--workers 2] [--out runs/knot-success] [--backend pybullet-surgical]
         [--base-seed 0] [--no-perturb] [--bending-stiffness EI] [--wound-gap MM]
         [--wound-depth MM] [--pad-clear-depth MM]
-        [--thread-contact-stiffness N_PER_M] [--single] [--resume]
+        [--thread-contact-stiffness N_PER_M] [--smooth-joints] [--single] [--resume]
         [--only base,friction,stiffness] [--base-part all|common|relative]
         [--set NAME=VALUE ...] [--runs 1,2,5-9]
 
@@ -665,6 +665,12 @@ def main(argv: Sequence[str]) -> int:
         "(damping 5 N*s/m; default: rigid contacts); give --resume only with the same value",
     )
     ap.add_argument(
+        "--smooth-joints",
+        action="store_true",
+        help="the thread's capsules reach over its joints (a round tube through each, no "
+        "groove; default: tip to tip); give --resume only with the same choice",
+    )
+    ap.add_argument(
         "--runs",
         default=None,
         help="run only these runs of the --seeds draws, e.g. 1,2,5-9 (each keeps its own "
@@ -749,6 +755,10 @@ def main(argv: Sequence[str]) -> int:
         jobs = [
             j._replace(options={**j.options, "thread_contact_stiffness": stiffness}) for j in jobs
         ]
+    if args.smooth_joints:
+        if "thread_smooth_joints" not in accepted:
+            ap.error(f"--smooth-joints: backend {args.backend} takes no thread_smooth_joints")
+        jobs = [j._replace(options={**j.options, "thread_smooth_joints": True}) for j in jobs]
     what = "knot-algorithm-N.yaml (one throw)" if args.single else "square-knot.yaml"
     if args.set:
         what += " --set " + " --set ".join(args.set)
@@ -760,6 +770,8 @@ def main(argv: Sequence[str]) -> int:
         what += f", pad contacts back within {args.pad_clear_depth:g} mm"
     if stiffness is not None:
         what += f", thread contacts {stiffness:g} N/m"
+    if args.smooth_joints:
+        what += ", smooth joints"
     runs = f"{args.seeds} run(s)" if args.runs is None else f"runs {args.runs} of {args.seeds}"
     print(
         f"{what} on {args.backend}: {runs} per algorithm "

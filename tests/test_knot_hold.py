@@ -23,7 +23,25 @@ def test_a_rigid_overhand_drawn_to_3n_reads_a_tension_no_tool_applies() -> None:
     assert soft.deepest > rigid.deepest
 
 
-@pytest.mark.parametrize("bad", [["--stiffness", "-1"], ["--stiffness", "ten"]])
+def test_smooth_joints_hold_the_overhand_and_square_at_3n_without_the_wedge() -> None:
+    """With no groove at the joints for a crossing capsule to wedge open, the overhand
+    drawn to 3 N reads at most half again the pull inside the knot (the tip-to-tip chain:
+    over three times it), and the laid square keeps both throws at 3 N, where the
+    tip-to-tip chain loses one (``python benchmarks/knot_hold.py --target 3 --joints
+    tip,smooth --stiffness 0``)."""
+    overhand = kh.hold("overhand", 60, 0.0, 3.0, 2.0, joints="smooth")
+    assert overhand.type.startswith("trefoil"), overhand
+    assert overhand.min_hold > 2.4, overhand
+    assert overhand.peak < 1.5 * 3.0, overhand
+    square = kh.hold("square", 80, 0.0, 3.0, 2.0, joints="smooth")
+    assert square.type == "square", square
+    assert square.min_hold > 1.0, square
+    assert kh.hold("square", 80, 0.0, 3.0, 2.0).type != "square"
+
+
+@pytest.mark.parametrize(
+    "bad", [["--stiffness", "-1"], ["--stiffness", "ten"], ["--joints", "round"]]
+)
 def test_command_line_refuses_a_stiffness_it_cannot_use(bad: list[str]) -> None:
     with pytest.raises(SystemExit) as err:
         kh.main(bad)

@@ -398,6 +398,7 @@ def test_the_true_peak_is_reported_apart_from_the_estimate(tmp_path: Path) -> No
         ["--pad-clear-depth", "0.1", "--backend", "ideal"],
         ["--thread-contact-stiffness", "0"],
         ["--thread-contact-stiffness", "1e4", "--backend", "ideal"],
+        ["--smooth-joints", "--backend", "ideal"],
     ],
 )
 def test_command_line_refuses_a_wound_gap_it_cannot_give(bad: list[str]) -> None:

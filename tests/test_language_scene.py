@@ -90,6 +90,9 @@ def test_usp_zero_written_as_a_number() -> None:
         {"suture": {"usp": "2-0", "length": 0.3, "contact_stiffness": "10 N"}},
         {"suture": {"usp": "2-0", "length": 0.3, "contact_stiffness": "10 kN/m",
                     "contact_damping": "-1 N*s/m"}},
+        # the joints' shape: a YAML boolean, not a number or a word
+        {"suture": {"usp": "2-0", "length": 0.3, "smooth_joints": 1}},
+        {"suture": {"usp": "2-0", "length": 0.3, "smooth_joints": "yes"}},
     ],
 )  # fmt: skip
 def test_bad_scenes_are_rejected(changes: dict[str, object]) -> None:
@@ -128,3 +131,9 @@ def test_the_threads_contacts_are_springs_in_units_or_left_rigid() -> None:
     soft = Scene.model_validate(_scene(suture=suture)).suture
     assert soft.contact_stiffness == pytest.approx(1e4)
     assert soft.contact_damping == pytest.approx(2.0)
+
+
+def test_the_threads_joints_are_grooves_unless_declared_smooth() -> None:
+    assert Scene.model_validate(_scene()).suture.smooth_joints is False
+    suture = {"usp": "2-0", "length": 0.3, "smooth_joints": True}
+    assert Scene.model_validate(_scene(suture=suture)).suture.smooth_joints is True

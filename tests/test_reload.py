@@ -323,3 +323,47 @@ def test_a_scenes_thread_contact_stiffness_reaches_the_thread_and_the_option_win
             assert infos == {(expected[1], expected[0])}
         finally:
             be.close()
+
+
+def _capsule_reach(be: StitchedSurgicalPyBulletBackend) -> set[float]:
+    """Each capsule's cylinder, between its end spheres' centres, less the distance from
+    its centre to the next capsule's (the joint spacing), in PyBullet's own numbers [m]:
+    0 when the spheres sit on the joints, minus two radii when the capsules meet tip to
+    tip."""
+    import pybullet as p
+
+    assert be.scene is not None and be.scene.suture is not None
+    bodies = be.scene.suture.bodies
+    centres = [np.array(p.getBasePositionAndOrientation(b, be.client)[0]) for b in bodies]
+    spacing = float(np.median(np.linalg.norm(np.diff(centres, axis=0), axis=1)))
+    heights = {p.getCollisionShapeData(b, -1, be.client)[0][3][0] for b in bodies}
+    return {round((h - spacing) / MM, 1) for h in heights}
+
+
+@pytest.mark.parametrize(
+    ("declared", "option", "smooth"),
+    [(False, None, False), (False, True, True), (True, None, True), (True, False, False)],
+)
+def test_smooth_joints_reach_every_thread_from_the_scene_or_the_option_which_wins(
+    model, declared: bool, option: bool | None, smooth: bool
+) -> None:  # type: ignore[no-untyped-def]
+    """The thread built and the thread reloaded after a cut: with smooth joints each
+    capsule's cylinder spans the joint spacing measured from the capsules' positions;
+    without, it is two collision radii (1.8 mm) shorter."""
+    suture = model.suture.model_copy(update={"smooth_joints": declared})
+    scene = model.model_copy(update={"suture": suture})
+    be = StitchedSurgicalPyBulletBackend(thread_smooth_joints=option)
+    expected = {0.0} if smooth else {-1.8}
+    try:
+        be.reset(scene, 0)
+        assert _capsule_reach(be) == expected
+        be.cut_suture()
+        be.load_suture("entry_1", "exit_1")
+        assert _capsule_reach(be) == expected
+    finally:
+        be.close()
+
+
+def test_the_backend_refuses_a_joint_shape_that_is_not_a_boolean() -> None:
+    with pytest.raises(BackendError, match="thread_smooth_joints"):
+        StitchedSurgicalPyBulletBackend(thread_smooth_joints="yes")  # type: ignore[arg-type]

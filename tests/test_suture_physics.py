@@ -736,6 +736,61 @@ def test_soft_thread_contacts_yield_by_force_over_stiffness() -> None:
         sut.soften_contacts(1e4, -1.0)
 
 
+def _probe_clearance(smooth: bool, offsets: list[float], height: float) -> list[float]:
+    """The gap between a straight chain and a ball of the capsules' radius held ``height``
+    [m] above its axis, at each offset [m] along the axis from a joint in the chain's
+    middle (PyBullet's closest points to the capsules as built) [m]; negative: overlap."""
+    import pybullet as p
+
+    scene = build_scene({"tissue": {}, "suture": {"smooth_joints": smooth}})
+    try:
+        suture = scene.suture
+        assert suture is not None
+        client = scene.client
+        r = suture.params.collision_radius
+        ball = p.createMultiBody(
+            0.0,
+            p.createCollisionShape(p.GEOM_SPHERE, radius=r, physicsClientId=client),
+            physicsClientId=client,
+        )
+        ends = suture.centerline()
+        k = len(suture.bodies) // 2
+        joint = ends[k + 1]
+        axis = (ends[k + 2] - ends[k]) / np.linalg.norm(ends[k + 2] - ends[k])
+        gaps = []
+        for d in offsets:
+            at = joint + axis * d + np.array([0.0, 0.0, height])
+            p.resetBasePositionAndOrientation(ball, at.tolist(), [0, 0, 0, 1], client)
+            near = [
+                c[8]
+                for b in suture.bodies
+                for c in p.getClosestPoints(ball, b, 0.01, physicsClientId=client)
+            ]
+            gaps.append(min(near))
+        return gaps
+    finally:
+        scene.close()
+
+
+def test_smooth_joints_leave_no_groove_where_tip_to_tip_capsules_leave_one() -> None:
+    """A crossing strand's ball (radius r) held 1.6 mm above a straight chain, against the
+    spheres' geometry. Tip to tip, each capsule ends in a hemisphere centred r from the
+    joint, so over the joint the ball clears the chain by sqrt(r^2 + h^2) - 2r: it could
+    sink into the groove; d along the axis from the joint, by the distance to the nearer
+    end sphere less 2r. With smooth joints a sphere sits on the joint, and the ball
+    overlaps the chain by 2r - h wherever it is."""
+    r = SutureParams().collision_radius
+    h = 1.6e-3
+    offsets = [0.0, 0.3e-3, -0.3e-3, 0.6e-3, 2.0e-3]
+
+    def tip(d: float) -> float:
+        along = max(r - abs(d), 0.0)  # to the nearer end sphere's centre, along the axis
+        return math.hypot(along, h) - 2 * r
+
+    assert _probe_clearance(False, offsets, h) == pytest.approx([tip(d) for d in offsets], abs=1e-6)
+    assert _probe_clearance(True, offsets, h) == pytest.approx([h - 2 * r] * len(offsets), abs=1e-6)
+
+
 def test_thread_rests_on_the_stitchers_open_jaw() -> None:
     """With ``collide_with``, a thread laid on the empty jaw of a stitcher rests on it
     (4.4.1 step 4: the thread lays over the open jaw); without it, it falls through."""

@@ -175,6 +175,11 @@ class PyBulletBackend:
             overlap out whatever force that takes.
         thread_contact_damping: the damping of those contacts [N*s/m] (with
             ``thread_contact_stiffness``).
+        thread_smooth_joints: the thread's capsules reach over its joints, so that its
+            surface is a round tube through each of them (surgical scene;
+            :class:`backends.pybullet.suture.SutureParams`' ``smooth_joints``); None, the
+            default: the scene's ``suture.smooth_joints`` (false in every bundled scene:
+            the capsules meet tip to tip, with a groove at each joint).
     """
 
     name = "pybullet"
@@ -208,6 +213,7 @@ class PyBulletBackend:
         pad_clear_depth: float | None = None,
         thread_contact_stiffness: float | None = None,
         thread_contact_damping: float = CONTACT_DAMPING,
+        thread_smooth_joints: bool | None = None,
     ) -> None:
         self.gui = gui
         self.dt = dt
@@ -251,6 +257,12 @@ class PyBulletBackend:
             )
         self.thread_contact_stiffness = thread_contact_stiffness
         self.thread_contact_damping = thread_contact_damping
+        if thread_smooth_joints is not None and not isinstance(thread_smooth_joints, bool):
+            raise BackendError(
+                self.name,
+                f"thread_smooth_joints must be true or false, got {thread_smooth_joints!r}",
+            )
+        self.thread_smooth_joints = thread_smooth_joints
         self.scene: Any = None
         """The :class:`backends.pybullet.scene.Scene` when the surgical scene is built."""
         self._scene_model: Any = None
@@ -308,6 +320,7 @@ class PyBulletBackend:
         self._hands = []
         self._slips_seen = {}
         self._stalls_seen = {}
+        scene = self._thread_options(scene)
         self._scene_model = scene
         self.cut_threads = []
         self._contact_diameter = None
@@ -868,6 +881,15 @@ class PyBulletBackend:
         if stiffness is None:
             return None
         return float(stiffness), float(suture.contact_damping)
+
+    def _thread_options(self, scene: Any) -> Any:
+        """The scene model with the backend's ``thread_smooth_joints`` in its suture, when
+        given (the thread is built from the model, and every reloaded one with it)."""
+        suture = getattr(scene, "suture", None)
+        if self.thread_smooth_joints is None or suture is None:
+            return scene
+        smooth = suture.model_copy(update={"smooth_joints": self.thread_smooth_joints})
+        return scene.model_copy(update={"suture": smooth})
 
     def _wound(self) -> dict[str, float]:
         """The ``wound_gap`` and ``wound_depth`` keywords for the scene's pads, as given: the

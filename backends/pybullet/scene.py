@@ -83,7 +83,13 @@ DEFAULT_SCENE: dict[str, Any] = {
         "normal": [0.0, 0.0, 1.0],
         "depth": 0.003,
     },
-    "suture": {"length": 0.3, "segments": 40, "knot": None, "knot_scale": 0.0025},
+    "suture": {
+        "length": 0.3,
+        "segments": 40,
+        "knot": None,
+        "knot_scale": 0.0025,
+        "smooth_joints": False,
+    },
 }
 """The default scene: two graspers, a tissue pad at the origin, a straight 0.3 m thread."""
 
@@ -287,7 +293,11 @@ def build_scene(
 
         sut = cfg["suture"]
         length = float(sut["length"])
-        params = SutureParams(length=length, n_segments=int(sut["segments"]))
+        params = SutureParams(
+            length=length,
+            n_segments=int(sut["segments"]),
+            smooth_joints=bool(sut["smooth_joints"]),
+        )
         origin = (-length / 2, -0.03, 0.02)
         knot = sut.get("knot")
         if knot is None:
@@ -538,6 +548,7 @@ def suture_params(model: Any, bending_stiffness: float) -> SutureParams:
         n_segments=max(40, round(model.suture.length / (model.suture.segment or 7.5e-3))),
         diameter=float(model.suture.diameter),
         bending_stiffness=bending_stiffness,
+        smooth_joints=bool(getattr(model.suture, "smooth_joints", False)),
     )
 
 

@@ -155,6 +155,13 @@ class SutureParams:
             capsules then resists bending with a torque EI / segment_length times the
             sine of its bend angle (applied in :meth:`Suture.pre_step`). 0 (the default)
             is the limp thread the knot tests are tuned with.
+        smooth_joints: centre each capsule's end spheres on its two joints (its collision
+            cylinder spans the whole segment), so the chain's surface is a round tube
+            through every joint. False (the default, the procedures' tuning): the
+            capsules meet tip to tip and each joint is a groove ``collision_radius``
+            deep; a crossing capsule pressed into it pushes the two caps apart along the
+            thread, against the joint, and the joint's force then reads far above any
+            pull (:meth:`collision_height`).
     """
 
     length: float = 0.3
@@ -171,6 +178,7 @@ class SutureParams:
     needle: bool = True
     needle_radius: float = 6e-3
     bending_stiffness: float = 0.0
+    smooth_joints: bool = False
 
     def __post_init__(self) -> None:
         if self.n_segments < 3:
@@ -193,8 +201,16 @@ class SutureParams:
 
     @property
     def segment_length(self) -> float:
-        """Rest length of one capsule, tip to tip [m]."""
+        """Rest length of one capsule, joint to joint [m]."""
         return self.length / self.n_segments
+
+    def collision_height(self) -> float:
+        """The capsule's cylinder between its end spheres' centres [m]: the segment's
+        length with ``smooth_joints`` (the spheres centred on the joints, each capsule
+        reaching ``collision_radius`` past them into its neighbours, with which it does
+        not collide), else the segment less the two caps (tip to tip)."""
+        seg = self.segment_length
+        return seg if self.smooth_joints else seg - 2 * self.collision_radius
 
 
 class SutureContact(NamedTuple):
@@ -423,13 +439,14 @@ class Suture:
         seg = prm.segment_length
         pts = _resample(np.asarray(path, dtype=float), prm.n_segments, seg)
         r = prm.collision_radius
+        height = prm.collision_height()
         shape = p.createCollisionShape(
-            p.GEOM_CAPSULE, radius=r, height=seg - 2 * r, physicsClientId=client
+            p.GEOM_CAPSULE, radius=r, height=height, physicsClientId=client
         )
         visual = p.createVisualShape(
             p.GEOM_CAPSULE,
             radius=r,
-            length=seg - 2 * r,
+            length=height,
             rgbaColor=[0.15, 0.3, 0.9, 1.0],
             physicsClientId=client,
         )

@@ -14,6 +14,7 @@ from pydantic import (
     BaseModel,
     ConfigDict,
     Field,
+    StrictBool,
     ValidationInfo,
     field_validator,
     model_validator,
@@ -233,6 +234,11 @@ class Suture(_Model):
     as springs in series, at half of it. ``None``: rigid contacts."""
     contact_damping: Damping = Field(default=5.0, ge=0.0)
     """The damping of those contacts [N*s/m]; used with ``contact_stiffness`` only."""
+    smooth_joints: StrictBool = False
+    """Simulators that model the thread as a chain of capsules: centre each capsule's
+    rounded ends on its joints, so the chain's surface is a round tube through every joint.
+    ``false``: the capsules meet tip to tip, and each joint is a groove as deep as the
+    capsule's radius, in which a crossing strand can wedge the joint open."""
 
     @field_validator("usp", mode="before")
     @classmethod
