@@ -679,7 +679,7 @@ def _pressed_depth(
     off: the contact's depth [m] and normal force [N] once settled."""
     import pybullet as p
 
-    from backends.pybullet.suture import Suture, configure_physics, straight_path
+    from backends.pybullet.suture import CONTACT_DAMPING, Suture, configure_physics, straight_path
 
     c = p.connect(p.DIRECT)
     try:
@@ -688,7 +688,7 @@ def _pressed_depth(
         prm = SutureParams(length=0.012, n_segments=3, needle=False)
         sut = Suture.create(c, straight_path((-0.006, 0, 0), (1, 0, 0), 0.012), prm)
         if stiffness is not None:
-            sut.soften_contacts(stiffness, 5.0)
+            sut.soften_contacts(stiffness, CONTACT_DAMPING)
         r = prm.collision_radius
         shape = p.createCollisionShape(p.GEOM_CAPSULE, radius=r, height=0.01, physicsClientId=c)
         bar = p.createMultiBody(
@@ -697,7 +697,11 @@ def _pressed_depth(
         )  # fmt: skip
         if soft_bar and stiffness is not None:
             p.changeDynamics(
-                bar, -1, contactStiffness=stiffness, contactDamping=5.0, physicsClientId=c
+                bar,
+                -1,
+                contactStiffness=stiffness,
+                contactDamping=CONTACT_DAMPING,
+                physicsClientId=c,
             )
         mid = sut.bodies[1]
         # Ramp over 0.3 s, then hold 0.1 s. A thread balanced on a crossing capsule is

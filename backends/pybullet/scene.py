@@ -548,7 +548,7 @@ def suture_params(model: Any, bending_stiffness: float) -> SutureParams:
         n_segments=max(40, round(model.suture.length / (model.suture.segment or 7.5e-3))),
         diameter=float(model.suture.diameter),
         bending_stiffness=bending_stiffness,
-        smooth_joints=bool(getattr(model.suture, "smooth_joints", False)),
+        smooth_joints=model.suture.smooth_joints,
     )
 
 
