@@ -12,7 +12,7 @@ import pytest
 
 from backends.base import BackendError
 from backends.pybullet.backend import StitchedSurgicalPyBulletBackend, SurgicalPyBulletBackend
-from backends.pybullet.tools import Grasper, Stitcher
+from backends.pybullet.tools import BentTipGrasper, Grasper, Stitcher
 from suture_engine.language.loader import load_procedure
 from suture_engine.robot.endobot import gravity_vector
 from suture_engine.runtime.evaluation import evaluate_trace, find_bites
@@ -108,6 +108,46 @@ def test_a_cut_thread_leaves_the_world_and_a_loaded_one_is_stitched_at_its_site(
             for b in suture.bodies
         ]
         assert max(speeds) < 0.01
+    finally:
+        be.close()
+
+
+def test_on_algorithm_3s_bench_the_needle_holder_takes_the_loaded_thread() -> None:
+    """Algorithm 3's bench has no stitcher: the stitched start puts the needle's end in
+    the needle holder's jaws (a plain grasper), and its bent-tip grasper filters the
+    thread per capsule. A thread loaded in place, after the same settling, lies where
+    the start laid the first one; loaded at stitch 1, it is stitched there, its end held
+    by the holder. (The bent grasper's filters for a new thread:
+    ``tests/test_suture_physics.py``.)"""
+    alg3 = load_procedure(ROOT / "procedures" / "knot-algorithm-3.yaml").scene
+    be = StitchedSurgicalPyBulletBackend()
+    try:
+        be.reset(alg3, 0)
+        assert be.scene is not None
+        holder, bent = be.scene.tools["endobot_1"], be.scene.tools["endobot_2"]
+        assert type(holder) is Grasper and isinstance(bent, BentTipGrasper)
+        _hold(be, 300)
+        first = np.asarray(be.ground_truth()["centerline"])
+        be.cut_suture()
+        assert holder.held_segment == -1 and bent.suture is None
+        be.load_suture("entry_2", "exit_2")
+        _hold(be, 300 + round(be.SETTLE_S / be.dt))  # the reset settled the first one too
+        again = np.asarray(be.ground_truth()["centerline"])
+        assert np.abs(again - first).max() < 0.2 * MM
+        be.cut_suture()
+        be.load_suture("entry_1", "exit_1")
+        _hold(be, 1500)
+        suture = be.scene.suture
+        line = np.asarray(be.ground_truth()["centerline"])
+        bites = find_bites(line, (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+        entry, exit_ = _site(alg3, 1)
+        assert len(bites) == 1
+        assert np.linalg.norm(np.asarray(bites[0].entry) - entry) < 0.5 * MM
+        assert np.linalg.norm(np.asarray(bites[0].exit) - exit_) < 0.5 * MM
+        assert holder.held_segment == len(suture.bodies) - 1
+        tip, _ = be.scene.robots["endobot_1"].true_tool_pose()
+        assert np.linalg.norm(line[-1] - np.asarray(tip)) < 1.0 * MM
+        assert be.ground_truth()["tension_N"] < 0.1
     finally:
         be.close()
 

@@ -885,6 +885,87 @@ def test_a_bent_grasper_lets_go_of_the_thread_without_throwing_it_out() -> None:
     assert turned_on  # 50 steps on it is clear, and its pair is on again
 
 
+def test_a_bent_grasper_given_a_new_thread_collides_with_it_as_with_the_first() -> None:
+    """A thread cut and another loaded while the grasper is bent (an interrupted suture
+    by algorithm 3): a new capsule pressed against the bent jaws meets them (a loop rests
+    on the arm), and one laid inside them waits, as a released one does, until it is
+    clear. (With every new pair turned on at once, the one inside is thrown out and the
+    thread reads 48 N.)"""
+    touched, _ = _new_thread_at_bent_jaws(inside=False)
+    assert touched
+    _, peak = _new_thread_at_bent_jaws(inside=True)
+    assert peak < 0.3
+
+
+def _new_thread_at_bent_jaws(inside: bool) -> tuple[bool, float]:
+    """A mounted, bent grasper is given a new thread in place of one cut before: laid
+    across just beside its jaws (``inside`` False), one capsule then pressed 0.2 mm into
+    them, or laid through them. Returns whether that capsule touches the jaws on the
+    step after the press, and the peak thread tension [N] over 50 steps."""
+    import pybullet as p
+
+    from backends.pybullet.scene import PARKED
+    from backends.pybullet.suture import configure_physics
+
+    c = p.connect(p.DIRECT)
+    try:
+        configure_physics(c)
+        p.setGravity(0.0, 0.0, 0.0, physicsClientId=c)
+        mount = p.createMultiBody(
+            0.0, -1, -1, [0.0, 0.0, 0.05],
+            linkMasses=[0.0], linkCollisionShapeIndices=[-1], linkVisualShapeIndices=[-1],
+            linkPositions=[[0.0, 0.0, 0.0]], linkOrientations=[[0.0, 0.0, 0.0, 1.0]],
+            linkInertialFramePositions=[[0.0, 0.0, 0.0]],
+            linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]],
+            linkParentIndices=[0], linkJointTypes=[p.JOINT_FIXED], linkJointAxis=[[0.0, 0.0, 1.0]],
+            physicsClientId=c,
+        )  # fmt: skip
+        tool = BentTipGrasper.create(c, "bent", (0.0, 0.0, 0.05), hook=False)
+        tool.mount(mount, 0)
+        tool.set_bend(0.8, 0.0)
+        for _ in range(200):
+            tool.step()
+            p.stepSimulation(physicsClientId=c)
+        jaw = np.asarray(tool.pose()[0])
+        params = SutureParams(needle=False)
+        old = Suture.create(c, jaw + np.array([[-0.06, 0.05, 0.0], [0.06, 0.05, 0.0]]), params)
+        tool.set_thread(old)  # far from the jaws: every pair on
+        for _ in range(10):
+            tool.step()
+            p.stepSimulation(physicsClientId=c)
+        tool.set_thread(None)
+        old.park(PARKED)
+        offset = np.array([0.0, 0.0 if inside else 0.02, 0.0])
+        new = Suture.create(c, jaw + np.array([[-0.06, 0.0, 0.0], [0.06, 0.0, 0.0]]) + offset,
+                            params)  # fmt: skip
+        mid = int(np.argmin(np.linalg.norm(new.centerline()[:-1] - jaw, axis=1)))
+        tool.set_thread(new)
+        touched = False
+        if not inside:
+            tool.step()
+            p.stepSimulation(physicsClientId=c)
+            surface = p.getClosestPoints(tool.body, new.bodies[mid], 0.05, physicsClientId=c)
+            near = min(
+                surface, key=lambda pt: pt[8]
+            )  # its normal on the capsule points to the jaws
+            pos, orn = p.getBasePositionAndOrientation(new.bodies[mid], physicsClientId=c)
+            moved = np.asarray(pos) + np.asarray(near[7]) * (near[8] + 0.2e-3)
+            p.resetBasePositionAndOrientation(new.bodies[mid], moved.tolist(), orn,
+                                              physicsClientId=c)  # fmt: skip
+            tool.step()
+            p.stepSimulation(physicsClientId=c)
+            touched = bool(p.getContactPoints(tool.body, new.bodies[mid], physicsClientId=c))
+        peak = 0.0
+        for _ in range(50):
+            tool.step()
+            new.pre_step()
+            p.stepSimulation(physicsClientId=c)
+            peak = max(peak, float(new.tensions().max()))
+        return touched, peak
+    finally:
+        p.disconnect(physicsClientId=c)
+
+
 def _bent_release(at_once: bool) -> tuple[float, bool, bool, bool]:
     """Peak thread tension [N] over 50 steps after a mounted, bent grasper opens on the
     thread; whether the held capsule lay inside the jaws then; whether one step after the

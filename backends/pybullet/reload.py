@@ -109,8 +109,8 @@ def load_thread(
 
     Raises:
         SceneError: a thread is still in the world, an unknown start or point name, no
-            stitcher to hold the needle, a bent-tip grasper in the scene, or a thread
-            too short to reach the jaw.
+            stitcher or needle holder to hold the needle (a holder takes the stitched
+            start only), or a thread too short to reach the jaw.
     """
     import pybullet as p
 
@@ -119,22 +119,29 @@ def load_thread(
     if start not in RELOAD_STARTS:
         raise SceneError("start", start, list(RELOAD_STARTS))
     stitchers = [t for t in scene.tools.values() if isinstance(t, Stitcher)]
-    if not stitchers:
-        raise SceneError("robots", sorted(scene.tools), ["a stitcher to hold the needle"])
-    if any(type(t).__name__ == "BentTipGrasper" for t in scene.tools.values()):
+    holder = _needle_holder(scene, model) if not stitchers else None
+    if not stitchers and holder is None:
         raise SceneError(
             "robots",
-            "bent-tip-grasper",
-            ["hook-grasper or grasper (a reload does not rebuild the bent tip's thread filters)"],
+            sorted(scene.tools),
+            ["a stitcher to hold the needle, or a plain grasper (algorithm 3's needle holder)"],
         )
-    stitcher = stitchers[0]
+    if holder is not None and start != "stitched":
+        raise SceneError("start", start, ["stitched (a needle holder holds the thread's end)"])
     a, b = stitch_points(model.tissue, (entry, exit_))
     client = scene.client
     normal = np.asarray(model.tissue.normal, float)
     normal = normal / np.linalg.norm(normal)
     tissue = model_tissue(client, model, a, b, wound_gap, wound_depth)
     params = suture_params(model, bending_stiffness)
-    jaw, axis = stitcher.needle_jaw()
+    if holder is None:
+        jaw, axis = stitchers[0].needle_jaw()
+    else:
+        # as the stitched start lays it: the end in the holder's jaws at its tool tip, the
+        # thread leaving along the tip's x
+        tip, orn = scene.robots[holder].true_tool_pose()
+        jaw = tuple(float(v) for v in tip)
+        axis = np.array(p.getMatrixFromQuaternion([float(v) for v in orn])).reshape(3, 3)[:, 0]
     lift = params.collision_radius + 0.5e-3
     try:
         if start == "stitched":
@@ -173,4 +180,18 @@ def load_thread(
     for tool in scene.tools.values():
         if isinstance(tool, (Grasper, Stitcher)):
             tool.set_thread(suture)
+    if holder is not None:
+        held = scene.tools[holder]
+        assert isinstance(held, Grasper)
+        held.grip(len(suture.bodies) - 1)
     return suture
+
+
+def _needle_holder(scene: Scene, model: Any) -> str | None:
+    """The robot whose plain grasper holds the needle's end of a stitched thread when the
+    scene has no stitcher (algorithm 3's needle holder: the first by name, as
+    :func:`backends.pybullet.scene.build_scene` picks it), or None."""
+    for name, spec in sorted(model.robots.items()):
+        if spec.tool == "grasper" and name in scene.tools:
+            return str(name)
+    return None

@@ -1064,6 +1064,26 @@ class BentTipGrasper(Grasper):
         if self.suture is not None and any(self._clearing.values()):
             self._clear_passed()
 
+    def set_thread(self, suture: Suture | None) -> None:
+        """Take ``suture`` as the thread (see :meth:`Grasper.set_thread`), and give the
+        bent link and jaws its pair filters: each capsule collides with a part that
+        collides (once clear of it, as at the start), the new needle never."""
+        import pybullet as p
+
+        super().set_thread(suture)
+        self._passed = {}
+        self._clearing = {}
+        self._filtered_for = -3
+        if suture is None:
+            return
+        if suture.needle_body >= 0:
+            for body, on in zip((self.link_body, self.body), self._collides, strict=True):
+                if on:
+                    p.setCollisionFilterPair(
+                        body, suture.needle_body, -1, -1, 0, physicsClientId=self.client
+                    )
+        self._filter_thread()
+
     def set_bend(self, bend_x: float, bend_y: float) -> None:
         """Command the universal joint's two angles [rad].
 
