@@ -4,9 +4,11 @@ Each stitch of an interrupted suture has its own suture. Once its knot is tied, 
 assistant cuts the ends (``cut-suture``); the tied stitch stays in the tissue, and the
 stitcher's jaw is empty. Then a new suture is loaded (``load-suture``): on the stitched
 backend its stitch at ``entry``/``exit`` is already made (as that backend's start lays
-it), the needle in the jaw of the stitcher that holds it, wherever the stitcher is; on
-the plain surgical backend the thread hangs from the needle. Move the stitcher to where
-the next stitch starts before loading.
+it), the needle in the jaw of the stitcher that holds it, wherever the stitcher is (on
+algorithm 3's bench, the thread's end in the needle holder's jaws); on the plain surgical
+backend the thread hangs from the needle. Move the stitcher to where the next stitch
+starts before loading. (Loading once the bases are registered, as a real bench does:
+``square-knot.yaml``'s ``reload``.)
 
 Neither moves a robot: on the tick the step starts, the skill asks the runtime to change
 the suture (the interpreter hands :attr:`SutureChange.scene_request` to the backend; a

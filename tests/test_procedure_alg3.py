@@ -634,6 +634,37 @@ def test_with_registration_the_mirrored_holder_goes_round_the_near_post() -> Non
         assert _post_clearance(proc, [start, via, hand]) > 2.5e-3, start
 
 
+def test_reload_cuts_the_starts_thread_after_the_registration_and_loads_one_where_the_start_does() -> (
+    None
+):
+    """``reload`` (with ``register``): once the bases are registered the start's thread is
+    cut, the stitcher (algorithm 3: the needle holder) goes where the stitched start puts
+    it (``STITCHED_PULL`` over the exit, roll 0), and a thread is loaded for the same
+    stitch. Without ``register``, or by default, the three steps are left out."""
+    from backends.pybullet.scene import STITCHED_PULL
+    from suture_engine.runtime.plan import compile_procedure
+
+    square = ROOT / "procedures" / "square-knot.yaml"
+    names = ("reload-cut", "reload-over", "reload-load")
+    for params, on in (
+        ({"algorithm": 3, "register": True, "reload": True}, True),
+        ({"algorithm": 2, "register": True, "reload": True}, True),
+        ({"algorithm": 3, "reload": True}, False),
+        ({"algorithm": 3, "register": True}, False),
+        ({}, False),
+    ):
+        steps = compile_procedure(load_procedure(square, params=params)).steps
+        assert [steps[n].enabled for n in names] == [on] * 3, params
+    proc: Any = load_procedure(square, params={"algorithm": 3, "register": True, "reload": True})
+    over = proc.states["reload-over"].params
+    load = proc.states["reload-load"].params
+    assert (over.target, load.entry, load.exit) == ("exit_2", "entry_2", "exit_2")
+    np.testing.assert_allclose(over.offset, [0.0, 0.0, STITCHED_PULL])
+    assert over.roll == 0.0
+    order = [proc.states[n].on["done"] for n in ("register", *names)]
+    assert order == [*names, "simple-knot"]
+
+
 SLIDE_OFF_TIED_LEAST_MM = 29.7
 """Least travel of the first throw's ``slide-off`` before its 0.5 N guard was met on the
 throws that tied a trefoil (one turn, stitched start: seeds 1-3, 66.19-66.29 mm; the

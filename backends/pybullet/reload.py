@@ -12,8 +12,9 @@ the same in two operations that a procedure asks for between its knots:
   stitcher's jaw holds no needle afterwards.
 - :func:`load_thread` adds a new thread and pad for the stitch at the named entry and exit
   points, in the backend's start state: ``"stitched"`` (the stitch made, as the stitched
-  start lays it, the needle in the stitcher's holding jaw wherever the stitcher now is) or
-  ``"needle"`` (the thread hangs from the needle in that jaw).
+  start lays it, the needle in the stitcher's holding jaw wherever the stitcher now is; on
+  algorithm 3's bench, which has no stitcher, the thread's end in the needle holder's
+  jaws) or ``"needle"`` (the thread hangs from the needle in the stitcher's jaw).
 
 What this leaves out, stated: the cut knots are not obstacles for the next stitch (their
 short cut tails would be), and the wound edges are not pulled together by them.
