@@ -634,9 +634,7 @@ def test_with_registration_the_mirrored_holder_goes_round_the_near_post() -> Non
         assert _post_clearance(proc, [start, via, hand]) > 2.5e-3, start
 
 
-def test_reload_cuts_the_starts_thread_after_the_registration_and_loads_one_where_the_start_does() -> (
-    None
-):
+def test_reload_cuts_the_thread_after_registration_and_loads_one_where_the_start_does() -> None:
     """``reload`` (with ``register``): once the bases are registered the start's thread is
     cut, the stitcher (algorithm 3: the needle holder) goes where the stitched start puts
     it (``STITCHED_PULL`` over the exit, roll 0), and a thread is loaded for the same
