@@ -150,6 +150,15 @@ def test_on_algorithm_3s_bench_the_needle_holder_takes_the_loaded_thread() -> No
         assert be.ground_truth()["tension_N"] < 0.1
     finally:
         be.close()
+    hanging = SurgicalPyBulletBackend(start="needle")  # no needle to hang a thread from
+    try:
+        hanging.reset(alg3, 0)
+        hanging.cut_suture()
+        with pytest.raises(BackendError, match="a needle holder holds the thread's end"):
+            hanging.load_suture("entry_1", "exit_1")
+        assert hanging.scene.suture is None and hanging.scene.tissue is None
+    finally:
+        hanging.close()
 
 
 def test_the_stitcher_hands_the_loaded_needle_over(model) -> None:  # type: ignore[no-untyped-def]
