@@ -226,10 +226,15 @@ class ReplayBackend:
         """Nothing to do: the recorded measurements already felt the hand."""
         del robot, velocity, stiffness, duration
 
-    def cut_suture(self) -> None:
+    def cut_suture(self, withdraw: bool = False) -> None:
         """The recorded run's suture was cut here (``cut-suture``): the measurements that
         follow are of the world after the cut; there is nothing to change, and no ground
-        truth to give."""
+        truth to give.
+
+        Args:
+            withdraw: the suture was withdrawn, not kept (unused).
+        """
+        del withdraw
 
     def remove_posts(self) -> None:
         """The recorded run's calibration posts were taken away here (``remove-posts``):

@@ -36,6 +36,11 @@ class CutSutureParams(SkillParams):
 
     settle: Duration = Field(default=0.2, ge=0.0, le=5.0)
     """How long the robots hold still after the cut [s]."""
+    withdraw: bool = False
+    """The suture is drawn out of the tissue and discarded (one replaced before any knot,
+    e.g. a fresh one loaded once the bases are registered): it leaves the world and is
+    not one of the result's stitches (no ``/ground_truth/suture_cut``, no ``knot``
+    entry)."""
 
 
 class LoadSutureParams(SkillParams):
@@ -99,11 +104,16 @@ class SutureChange(Skill):
 
 
 class CutSuture(SutureChange):
-    """Cut the tied stitch's suture: it leaves the world, its knot kept for evaluation."""
+    """Cut the tied stitch's suture: it leaves the world, its knot kept for evaluation
+    (withdrawn: discarded, see :attr:`CutSutureParams.withdraw`)."""
 
     name: ClassVar[str] = "cut-suture"
     Params: ClassVar[type[SkillParams]] = CutSutureParams
     action: ClassVar[str] = "cut_suture"
+
+    def request(self) -> dict[str, Any]:
+        """``withdraw`` when set (a plain cut asks with no arguments)."""
+        return {"withdraw": True} if self.params.withdraw else {}  # type: ignore[attr-defined]
 
 
 class LoadSuture(SutureChange):

@@ -161,6 +161,37 @@ def test_on_algorithm_3s_bench_the_needle_holder_takes_the_loaded_thread() -> No
         hanging.close()
 
 
+def test_a_withdrawn_suture_is_not_a_stitch_of_the_result(tmp_path: Path) -> None:
+    """``cut-suture`` with ``withdraw``: the thread leaves the world as a cut one does, but
+    it is not kept (no cut centerline in the ground truth or the trace), so the run's
+    ``knot`` is the loaded thread's alone; a plain cut keeps it (the test above)."""
+    from suture_engine.trace import channels
+    from suture_engine.trace.reader import TraceReader
+
+    text = RELOAD.read_text()
+    assert text.count("skill: cut-suture\n") == 1
+    replaced = tmp_path / "replace-stitch.yaml"
+    replaced.write_text(
+        text.replace("procedure: reload-stitch", "procedure: replace-stitch")
+        .replace("skill: cut-suture\n", "skill: cut-suture\n    with: {withdraw: true}\n")
+        .replace("../../procedures/", str(ROOT / "procedures") + "/")
+    )
+    out = tmp_path / "run"
+    summary = run_procedure(replaced, out=out, seed=0, max_time_s=60.0).summary
+    assert summary.outcome == "succeeded", summary.metrics.get("stopped")
+    knot = summary.knot
+    assert isinstance(knot, dict) and knot["type"] == "unknot" and knot["through_tissue"]
+    assert summary.metrics["stitches"]["site"] == ["1"]
+    trace = out / "trace.mcap"
+    assert not list(TraceReader(trace).messages([channels.GROUND_TRUTH_SUTURE_CUT]))
+    cuts = [
+        m.data["detail"]
+        for m in TraceReader(trace).messages([channels.EVENTS])
+        if m.data["name"] == "cut-suture"
+    ]
+    assert cuts == ['{"withdraw":true}']
+
+
 def test_the_stitcher_hands_the_loaded_needle_over(model) -> None:  # type: ignore[no-untyped-def]
     be = StitchedSurgicalPyBulletBackend()
     try:

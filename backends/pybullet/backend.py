@@ -785,14 +785,19 @@ class PyBulletBackend:
             getters["contact_diameter"] = lambda: self._contact_diameter
         return _LazyTruth(getters)
 
-    def cut_suture(self) -> Any:
+    def cut_suture(self, withdraw: bool = False) -> Any:
         """Cut the thread and take it out of the world (an interrupted suture: the
         assistant cuts the tied stitch's ends; :func:`backends.pybullet.reload.cut_thread`).
+
+        Args:
+            withdraw: the thread is drawn out of the tissue and discarded (replaced before
+                any knot): it is not kept, and nothing is returned.
 
         Returns:
             The cut thread (:class:`~backends.pybullet.reload.CutThread`): ground truth,
             for evaluation and traces only. It is kept in :attr:`cut_threads`, and
             :meth:`ground_truth` gives the cut centerlines as ``cut_centerlines``.
+            None when withdrawn.
 
         Raises:
             BackendError: no surgical scene, or no thread to cut.
@@ -805,6 +810,8 @@ class PyBulletBackend:
             cut = cut_thread(self.scene)
         except SutureError as exc:
             raise BackendError(self.name, str(exc)) from None
+        if withdraw:
+            return None
         self.cut_threads.append(cut)
         return cut
 
