@@ -136,12 +136,13 @@ def load_thread(
     tissue = model_tissue(client, model, a, b, wound_gap, wound_depth)
     params = suture_params(model, bending_stiffness)
     if holder is None:
-        jaw, axis = stitchers[0].needle_jaw()
+        at, along = stitchers[0].needle_jaw()
+        jaw, axis = np.asarray(at, float), np.asarray(along, float)
     else:
         # as the stitched start lays it: the end in the holder's jaws at its tool tip, the
         # thread leaving along the tip's x
         tip, orn = scene.robots[holder].true_tool_pose()
-        jaw = tuple(float(v) for v in tip)
+        jaw = np.asarray(tip, float)
         axis = np.array(p.getMatrixFromQuaternion([float(v) for v in orn])).reshape(3, 3)[:, 0]
     lift = params.collision_radius + 0.5e-3
     try:
