@@ -252,7 +252,7 @@ def test_the_benchmark_sets_each_procedure_its_limit_from_its_baseline() -> None
     _, square_timeouts = bench.plan_steps(procs[1], square.sets)
     assert square.max_time_s >= 109.65 + square_timeouts
     assert square.max_time_s - (109.65 + square_timeouts) < 10.0
-    assert square.steps[0].startswith(("mirrored-knot.", "simple-knot."))
+    assert {s.split(".")[0] for s in square.steps} >= {"simple-knot", "mirrored-knot"}
     for t in (stitch, square):
         assert "grasp-slip" not in t.kinds and "snag" not in t.kinds and len(t.kinds) == 7
     fixed = bench.targets(procs, "pybullet", rows, 40.0)

@@ -150,7 +150,12 @@ def test_the_square_knot_registers_first_on_the_square_bench_with_posts() -> Non
     # then the jig stays (remove_posts off by default: a step turned off), and the knot
     assert plan.steps["register.grasper"].on_done == "register.remove-posts"
     assert not plan.steps["register.remove-posts"].enabled
-    assert plan.steps["register.remove-posts"].on_done.startswith("simple-knot.")
+    # then the reload's steps, off without reload, and the knot
+    step = plan.steps["register.remove-posts"].on_done
+    for name in ("reload-cut", "reload-over", "reload-load"):
+        assert step == name and not plan.steps[step].enabled
+        step = plan.steps[step].on_done
+    assert step.startswith("simple-knot.")
     assert validate_file(path, params={"register": True}) == []
     # algorithm 3 registers on the bent-tip bench with its posts
     alg3 = load_procedure(path, params={"register": True, "algorithm": 3})
