@@ -37,6 +37,8 @@ def test_language_reference_covers_the_whole_schema() -> None:
         assert f"`{skill}` skill parameters" in text, skill
     # meanings come from the models' attribute docstrings, with units
     assert "How long to hold [s]" in text
+    # and the committed page is the one the schema gives (a new field is not left out)
+    assert (DOCS / "language.md").read_text() == text, "run python docs/gen_language_reference.py"
 
 
 def test_plugin_page_skill_runs(tmp_path: Path) -> None:
