@@ -52,6 +52,17 @@ def _site(model, k: int) -> tuple[np.ndarray, np.ndarray]:  # type: ignore[no-un
     return np.asarray(pts[f"entry_{k}"], float), np.asarray(pts[f"exit_{k}"], float)
 
 
+def _stitched_at(line: np.ndarray, model, k: int) -> list:  # type: ignore[no-untyped-def]
+    """Assert that the centerline ``line`` [m] makes one bite, within 0.5 mm of stitch
+    ``k``'s declared entry and exit points; return the bites."""
+    bites = find_bites(line, (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    entry, exit_ = _site(model, k)
+    assert len(bites) == 1
+    assert np.linalg.norm(np.asarray(bites[0].entry) - entry) < 0.5 * MM
+    assert np.linalg.norm(np.asarray(bites[0].exit) - exit_) < 0.5 * MM
+    return bites
+
+
 def test_a_cut_thread_leaves_the_world_and_a_loaded_one_is_stitched_at_its_site(model) -> None:  # type: ignore[no-untyped-def]
     be = StitchedSurgicalPyBulletBackend()
     try:
@@ -89,11 +100,7 @@ def test_a_cut_thread_leaves_the_world_and_a_loaded_one_is_stitched_at_its_site(
         suture = be.scene.suture
         assert suture is not None and len(suture.bodies) == len(old_bodies)
         line = np.asarray(be.ground_truth()["centerline"])
-        bites = find_bites(line, (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
-        entry, exit_ = _site(model, 1)
-        assert len(bites) == 1
-        assert np.linalg.norm(np.asarray(bites[0].entry) - entry) < 0.5 * MM
-        assert np.linalg.norm(np.asarray(bites[0].exit) - exit_) < 0.5 * MM
+        bites = _stitched_at(line, model, 1)
         # the needle is locked in the jaw that held the old one, the thread at rest in it
         assert stitcher.holds_needle and stitcher.needle_body == suture.needle_body
         jaw, _ = stitcher.needle_jaw()
@@ -139,11 +146,7 @@ def test_on_algorithm_3s_bench_the_needle_holder_takes_the_loaded_thread() -> No
         _hold(be, 1500)
         suture = be.scene.suture
         line = np.asarray(be.ground_truth()["centerline"])
-        bites = find_bites(line, (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
-        entry, exit_ = _site(alg3, 1)
-        assert len(bites) == 1
-        assert np.linalg.norm(np.asarray(bites[0].entry) - entry) < 0.5 * MM
-        assert np.linalg.norm(np.asarray(bites[0].exit) - exit_) < 0.5 * MM
+        _stitched_at(line, alg3, 1)
         assert holder.held_segment == len(suture.bodies) - 1
         tip, _ = be.scene.robots["endobot_1"].true_tool_pose()
         assert np.linalg.norm(line[-1] - np.asarray(tip)) < 1.0 * MM

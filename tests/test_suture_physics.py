@@ -897,6 +897,34 @@ def test_a_bent_grasper_given_a_new_thread_collides_with_it_as_with_the_first() 
     assert peak < 0.3
 
 
+def _bent_grasper_at_rest(c: int) -> BentTipGrasper:
+    """A bent-tip grasper in an empty world without gravity (client ``c``), mounted on a
+    fixed link and bent by 0.8 rad (beyond ``collide_above``: its link and jaws collide),
+    after 200 steps at rest."""
+    import pybullet as p
+
+    from backends.pybullet.suture import configure_physics
+
+    configure_physics(c)
+    p.setGravity(0.0, 0.0, 0.0, physicsClientId=c)
+    mount = p.createMultiBody(
+        0.0, -1, -1, [0.0, 0.0, 0.05],
+        linkMasses=[0.0], linkCollisionShapeIndices=[-1], linkVisualShapeIndices=[-1],
+        linkPositions=[[0.0, 0.0, 0.0]], linkOrientations=[[0.0, 0.0, 0.0, 1.0]],
+        linkInertialFramePositions=[[0.0, 0.0, 0.0]],
+        linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]],
+        linkParentIndices=[0], linkJointTypes=[p.JOINT_FIXED], linkJointAxis=[[0.0, 0.0, 1.0]],
+        physicsClientId=c,
+    )  # fmt: skip
+    tool = BentTipGrasper.create(c, "bent", (0.0, 0.0, 0.05), hook=False)
+    tool.mount(mount, 0)
+    tool.set_bend(0.8, 0.0)
+    for _ in range(200):
+        tool.step()
+        p.stepSimulation(physicsClientId=c)
+    return tool
+
+
 def _new_thread_at_bent_jaws(inside: bool) -> tuple[bool, float]:
     """A mounted, bent grasper is given a new thread in place of one cut before: laid
     across just beside its jaws (``inside`` False), one capsule then pressed 0.2 mm into
@@ -905,27 +933,10 @@ def _new_thread_at_bent_jaws(inside: bool) -> tuple[bool, float]:
     import pybullet as p
 
     from backends.pybullet.scene import PARKED
-    from backends.pybullet.suture import configure_physics
 
     c = p.connect(p.DIRECT)
     try:
-        configure_physics(c)
-        p.setGravity(0.0, 0.0, 0.0, physicsClientId=c)
-        mount = p.createMultiBody(
-            0.0, -1, -1, [0.0, 0.0, 0.05],
-            linkMasses=[0.0], linkCollisionShapeIndices=[-1], linkVisualShapeIndices=[-1],
-            linkPositions=[[0.0, 0.0, 0.0]], linkOrientations=[[0.0, 0.0, 0.0, 1.0]],
-            linkInertialFramePositions=[[0.0, 0.0, 0.0]],
-            linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]],
-            linkParentIndices=[0], linkJointTypes=[p.JOINT_FIXED], linkJointAxis=[[0.0, 0.0, 1.0]],
-            physicsClientId=c,
-        )  # fmt: skip
-        tool = BentTipGrasper.create(c, "bent", (0.0, 0.0, 0.05), hook=False)
-        tool.mount(mount, 0)
-        tool.set_bend(0.8, 0.0)
-        for _ in range(200):
-            tool.step()
-            p.stepSimulation(physicsClientId=c)
+        tool = _bent_grasper_at_rest(c)
         jaw = np.asarray(tool.pose()[0])
         params = SutureParams(needle=False)
         old = Suture.create(c, jaw + np.array([[-0.06, 0.05, 0.0], [0.06, 0.05, 0.0]]), params)
@@ -945,9 +956,8 @@ def _new_thread_at_bent_jaws(inside: bool) -> tuple[bool, float]:
             tool.step()
             p.stepSimulation(physicsClientId=c)
             surface = p.getClosestPoints(tool.body, new.bodies[mid], 0.05, physicsClientId=c)
-            near = min(
-                surface, key=lambda pt: pt[8]
-            )  # its normal on the capsule points to the jaws
+            # the closest point; its normal on the capsule points to the jaws
+            near = min(surface, key=lambda pt: pt[8])
             pos, orn = p.getBasePositionAndOrientation(new.bodies[mid], physicsClientId=c)
             moved = np.asarray(pos) + np.asarray(near[7]) * (near[8] + 0.2e-3)
             p.resetBasePositionAndOrientation(new.bodies[mid], moved.tolist(), orn,
@@ -974,24 +984,9 @@ def _bent_release(at_once: bool) -> tuple[float, bool, bool, bool]:
     capsule on at the release."""
     import pybullet as p
 
-    from backends.pybullet.suture import configure_physics
-
     c = p.connect(p.DIRECT)
     try:
-        configure_physics(c)
-        p.setGravity(0.0, 0.0, 0.0, physicsClientId=c)
-        mount = p.createMultiBody(
-            0.0, -1, -1, [0.0, 0.0, 0.05],
-            linkMasses=[0.0], linkCollisionShapeIndices=[-1], linkVisualShapeIndices=[-1],
-            linkPositions=[[0.0, 0.0, 0.0]], linkOrientations=[[0.0, 0.0, 0.0, 1.0]],
-            linkInertialFramePositions=[[0.0, 0.0, 0.0]],
-            linkInertialFrameOrientations=[[0.0, 0.0, 0.0, 1.0]],
-            linkParentIndices=[0], linkJointTypes=[p.JOINT_FIXED], linkJointAxis=[[0.0, 0.0, 1.0]],
-            physicsClientId=c,
-        )  # fmt: skip
-        tool = BentTipGrasper.create(c, "bent", (0.0, 0.0, 0.05), hook=False)
-        tool.mount(mount, 0)
-        tool.set_bend(0.8, 0.0)  # beyond collide_above: link and jaws collide
+        tool = _bent_grasper_at_rest(c)
 
         def step(n: int) -> float:
             peak = 0.0
@@ -1002,9 +997,6 @@ def _bent_release(at_once: bool) -> tuple[float, bool, bool, bool]:
                 peak = max(peak, float(sut.tensions().max()))
             return peak
 
-        for _ in range(200):
-            tool.step()
-            p.stepSimulation(physicsClientId=c)
         jaw = np.asarray(tool.pose()[0])
         path = jaw + np.array([[-0.06, 0.0, 0.0], [0.06, 0.0, 0.0]])
         sut = Suture.create(c, path, SutureParams(needle=False))

@@ -31,8 +31,10 @@ from backends.pybullet.scene import (
     PARKED,
     Scene,
     SceneError,
+    carrier_jaw,
     hanging_path,
     model_tissue,
+    needle_holder,
     stitch_points,
     stitched_path,
     suture_params,
@@ -120,7 +122,7 @@ def load_thread(
     if start not in RELOAD_STARTS:
         raise SceneError("start", start, list(RELOAD_STARTS))
     stitchers = [t for t in scene.tools.values() if isinstance(t, Stitcher)]
-    holder = _needle_holder(scene, model) if not stitchers else None
+    holder = needle_holder(model.robots) if not stitchers else None
     if not stitchers and holder is None:
         raise SceneError(
             "robots",
@@ -138,12 +140,8 @@ def load_thread(
     if holder is None:
         at, along = stitchers[0].needle_jaw()
         jaw, axis = np.asarray(at, float), np.asarray(along, float)
-    else:
-        # as the stitched start lays it: the end in the holder's jaws at its tool tip, the
-        # thread leaving along the tip's x
-        tip, orn = scene.robots[holder].true_tool_pose()
-        jaw = np.asarray(tip, float)
-        axis = np.array(p.getMatrixFromQuaternion([float(v) for v in orn])).reshape(3, 3)[:, 0]
+    else:  # as the stitched start lays it
+        jaw, axis = carrier_jaw(scene.robots[holder], stitcher=False)
     lift = params.collision_radius + 0.5e-3
     try:
         if start == "stitched":
@@ -187,13 +185,3 @@ def load_thread(
         assert isinstance(held, Grasper)
         held.grip(len(suture.bodies) - 1)
     return suture
-
-
-def _needle_holder(scene: Scene, model: Any) -> str | None:
-    """The robot whose plain grasper holds the needle's end of a stitched thread when the
-    scene has no stitcher (algorithm 3's needle holder: the first by name, as
-    :func:`backends.pybullet.scene.build_scene` picks it), or None."""
-    for name, spec in sorted(model.robots.items()):
-        if spec.tool == "grasper" and name in scene.tools:
-            return str(name)
-    return None

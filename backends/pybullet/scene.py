@@ -55,9 +55,11 @@ __all__ = [
     "Scene",
     "SceneError",
     "build_scene",
+    "carrier_jaw",
     "channel_depth",
     "hanging_path",
     "model_tissue",
+    "needle_holder",
     "needle_path",
     "pull_ends",
     "remove_posts",
@@ -533,6 +535,30 @@ def tail_assistant(robots: Mapping[str, Any]) -> str | None:
     return next((n for n, spec in sorted(robots.items()) if "grasper" in spec.tool), None)
 
 
+def needle_holder(robots: Mapping[str, Any]) -> str | None:
+    """The robot whose plain grasper holds the thread's needle end in the stitched start
+    when no robot has a stitcher (algorithm 3's needle holder): the first by name whose
+    tool is ``grasper``; None when there is none."""
+    return next((n for n, spec in sorted(robots.items()) if spec.tool == "grasper"), None)
+
+
+def carrier_jaw(robot: Any, stitcher: bool) -> tuple[Any, Any]:
+    """Where the stitched start puts the thread's needle end on the robot that carries it,
+    and the direction the thread leaves it [m, unit], world frame, from the robot's true
+    tool pose: a stitcher's holding jaw (half the jaw gap along the tip's -x, 3 mm along
+    its z), or a needle holder's tool tip; the thread leaves along the tip's x, clear of
+    the shaft."""
+    import pybullet as p
+
+    tip, orn = robot.true_tool_pose()
+    offset = [-Stitcher.gap / 2, 0.0, 3e-3] if stitcher else [0.0, 0.0, 0.0]
+    tip_l = [float(v) for v in tip]
+    orn_l = [float(v) for v in orn]
+    jaw, _ = p.multiplyTransforms(tip_l, orn_l, offset, [0.0, 0.0, 0.0, 1.0])
+    axis = np.array(p.getMatrixFromQuaternion(orn_l)).reshape(3, 3)[:, 0]
+    return np.asarray(jaw, float), axis
+
+
 def _tail_out(entry: Any, exit_: Any, normal: Any) -> Any:
     """Unit direction on the surface (``normal`` a unit vector) from the exit point to the
     entry point: the way the tail leaves the entry point."""
@@ -775,10 +801,9 @@ def _build_model(
     tissue = model_tissue(client, model, entry, exit_, wound_gap, wound_depth)
     params = suture_params(model, bending_stiffness)
     stitchers = [n for n, spec in sorted(model.robots.items()) if spec.tool == "stitcher"]
-    holders = [n for n, spec in sorted(model.robots.items()) if spec.tool == "grasper"]
     # Without a stitcher, the stitched start puts the needle's end of the thread in the
     # jaws of the first plain grasper (the needle holder, algorithm 3).
-    holder = holders[0] if not stitchers and start == "stitched" and holders else None
+    holder = needle_holder(model.robots) if not stitchers and start == "stitched" else None
     lift = normal * (params.collision_radius + 0.5e-3)
     holds_tail = None
     threaded = not stitchers or start == "stitched"
@@ -792,15 +817,7 @@ def _build_model(
         if q_start is not None:
             robots[carrier].reset(q_start)
             hold[carrier] = q_start
-        tip, orn = robots[carrier].true_tool_pose()
-        jaw, _ = p.multiplyTransforms(
-            [float(v) for v in tip],
-            [float(v) for v in orn],
-            [-Stitcher.gap / 2, 0.0, 3e-3] if stitchers else [0.0, 0.0, 0.0],
-            [0.0, 0.0, 0.0, 1.0],
-        )
-        # The thread leaves jaw 0 outwards (along the tip's -x), clear of the shaft.
-        axis = np.array(p.getMatrixFromQuaternion([float(v) for v in orn])).reshape(3, 3)[:, 0]
+        jaw, axis = carrier_jaw(robots[carrier], stitcher=bool(stitchers))
         if start == "stitched":
             path = stitched_path(
                 tissue.channel,
