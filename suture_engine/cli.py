@@ -272,6 +272,28 @@ def knot(
 
 
 @app.command()
+def steps(
+    traces: Annotated[list[Path], typer.Argument(help="Trace files (trace.mcap).")],
+    state: Annotated[
+        list[str] | None,
+        typer.Option(help="Only states whose name matches this glob (repeatable)."),
+    ] = None,
+    json_: Annotated[bool, typer.Option("--json", help="Print one JSON array of rows.")] = False,
+    csv_: Annotated[
+        Path | None,
+        typer.Option(
+            "--csv",
+            help="Write one row per state and run here, labelled with each run's outcome and knot.",
+        ),
+    ] = None,
+) -> None:
+    """What the robots measured in each state: tool-tip travel and base-sensor tension estimates."""
+    from suture_engine.report.cli_steps import steps_command
+
+    raise typer.Exit(steps_command(traces, states=state or [], as_json=json_, csv_path=csv_))
+
+
+@app.command()
 def plot(
     trace: Annotated[Path, typer.Argument(help="A recorded trace (trace.mcap).")],
     out: Annotated[

@@ -28,7 +28,7 @@ TUTORIAL = ROOT / "docs" / "tutorial.md"
 FENCE = re.compile(r"^```(\w*)\s*$")
 FILE_MARK = re.compile(r"^<!--\s*file:\s*(\S+)\s*-->\s*$")
 EXITS = re.compile(r"\s+#\s*exits\s+(\d+)\s*$")
-NEEDS_A_RUN = ("run", "plot", "report", "trace", "replay", "diff", "sweep")
+NEEDS_A_RUN = ("run", "plot", "report", "trace", "replay", "diff", "sweep", "steps")
 
 
 class Step(NamedTuple):
