@@ -30,6 +30,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from suture_engine.robot.kinematics import forward_kinematics
 from suture_engine.trace.channels import (
     GROUND_TRUTH_TENSION,
     TENSION_ESTIMATED,
@@ -105,8 +106,6 @@ class _Robot:
         self.end = False
 
     def tip(self, position: Sequence[float]) -> None:
-        from suture_engine.robot.kinematics import forward_kinematics
-
         if len(position) != ENDOBOT_JOINTS:
             return
         p = forward_kinematics(position).position
