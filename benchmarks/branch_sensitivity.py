@@ -228,7 +228,8 @@ def _step_name(state: str) -> str:
 
 class BranchRecorder(Recorder):
     """Keeps what a branch reports: per step after the branch point, the ground-truth
-    knot at its end and the tools' true tip travel; the largest true tension."""
+    knot at its end, the tools' true tip travel and the step's largest true tension;
+    the largest true tension over the branch."""
 
     def __init__(self, backend: Any) -> None:
         self.backend = backend
@@ -236,6 +237,7 @@ class BranchRecorder(Recorder):
         self.steps: list[dict[str, Any]] = []
         self.recording = False
         self.peak_true_N = 0.0
+        self._step_peak_N = 0.0
         self._current: tuple[str, float, dict[str, Any]] | None = None
 
     def tick(
@@ -250,6 +252,7 @@ class BranchRecorder(Recorder):
         value = ground_truth.get("tension_N")
         if self.recording and value is not None:
             self.peak_true_N = max(self.peak_true_N, float(value))
+            self._step_peak_N = max(self._step_peak_N, float(value))
 
     def start(self, state: str, t: float) -> None:
         """Begin recording at the branch point: the step being entered, at ``t`` [s]."""
@@ -274,8 +277,10 @@ class BranchRecorder(Recorder):
                 if r in tips0
             }
             self.steps.append({"step": name, "start_s": round(t0, 3), "end_s": round(t, 3),
-                               "knot": _knot(truth), "travel_mm": travel})  # fmt: skip
+                               "knot": _knot(truth), "travel_mm": travel,
+                               "peak_true_N": round(self._step_peak_N, 3)})  # fmt: skip
         self._current = (record.dest.rsplit("/", 1)[-1], t, tips)
+        self._step_peak_N = 0.0
 
 
 def _centre_mm(knot: Any) -> list[float] | None:
@@ -471,7 +476,9 @@ def format_results(results: Sequence[Mapping[str, Any]]) -> str:
         for s in r["steps"]:
             travel = ", ".join(f"{k} {v:.1f} mm" for k, v in s["travel_mm"].items())
             span = f"{s['start_s']:8.2f}-{s['end_s']:8.2f} s"
-            lines.append(f"    {s['step']:<42} {span}  knot {s['knot']}  travel {travel}")
+            peak = s.get("peak_true_N")
+            shown = "" if peak is None else f"  true peak {peak:.2f} N"
+            lines.append(f"    {s['step']:<42} {span}  knot {s['knot']}  travel {travel}{shown}")
     return "\n".join(lines)
 
 

@@ -12,6 +12,7 @@ import math
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 from benchmark_modules import load_benchmark
 
@@ -273,3 +274,32 @@ def test_a_branch_from_an_ablation_run_keeps_only_its_perturbations(tmp_path: Pa
     for bad in ("gravity", "friction,gravity", ","):
         with pytest.raises(bs.SweepRunError, match="--sweep-only: comma-separated from"):
             bs.sweep_run("3:1", "pybullet-surgical-stitched", only=bad)
+
+
+def test_each_steps_true_peak_is_its_own() -> None:
+    """The recorder keeps the largest true tension per step after the branch point, reset
+    at every transition: a high first step does not show in the calm second one."""
+
+    class Backend:
+        def ground_truth(self) -> dict[str, object]:
+            return {"endobot_1/tool_tip": np.zeros(3)}
+
+    class Record:
+        def __init__(self, dest: str) -> None:
+            self.dest = dest
+
+    rec = bs.BranchRecorder(Backend())
+    rec.tick(0, None, None, None, None, {"tension_N": 9.0})  # before the branch point
+    rec.start("autonomous/pull", 1.0)
+    for k, value in enumerate((0.5, 3.25, 1.0)):
+        rec.tick(1_000_000_000 + k, None, None, None, None, {"tension_N": value})
+    rec.transition(2_000_000_000, Record("autonomous/rest"))
+    rec.tick(2_000_000_001, None, None, None, None, {"tension_N": 0.25})
+    rec.tick(2_000_000_002, None, None, None, None, {})  # no thread this tick
+    rec.transition(3_000_000_000, Record("done"))
+    assert [(s["step"], s["peak_true_N"]) for s in rec.steps] == [("pull", 3.25), ("rest", 0.25)]
+    assert rec.peak_true_N == 3.25
+    row = {"variant": "v", "outcome": "succeeded", "final_state": "done", "sim_time_s": 3.0,
+           "knot": None, "knot_centre_mm": None, "peak_true_tension_N": 3.25, "branch_s": 1.0,
+           "steps": rec.steps}  # fmt: skip
+    assert "true peak 3.25 N" in bs.format_results([row]).splitlines()[1]
