@@ -663,34 +663,6 @@ def test_reload_cuts_the_thread_after_registration_and_loads_one_where_the_start
     assert order == [*names, "simple-knot"]
 
 
-def test_snug_turn_adds_one_holder_move_between_the_mirrored_grasp_and_the_turn() -> None:
-    """``snug_turn`` (off by default): in algorithm 3's mirrored throw, with the arm turned
-    along the tail, the holder's ``snug-loop`` comes between ``grab-tail`` and
-    ``align-arm``; in every other case it is left out, and a failed guard goes on to the
-    turn."""
-    from suture_engine.runtime.plan import compile_procedure
-
-    square = ROOT / "procedures" / "square-knot.yaml"
-    name = "mirrored-knot.snug-loop"
-    for params, on in (
-        ({"algorithm": 3, "snug_turn": True}, True),
-        ({"algorithm": 3}, False),
-        ({"algorithm": 3, "snug_turn": True, "align_mirror": False}, False),
-        ({"algorithm": 3, "snug_turn": True, "mirror": False}, False),
-    ):
-        steps = compile_procedure(load_procedure(square, params=params)).steps
-        assert steps[name].enabled is on, params
-        assert steps["simple-knot.snug-loop"].enabled is False, params
-    proc: Any = load_procedure(
-        PROC, params={"second": True, "mirror": True, "align_mirror": True, "snug_turn": True}
-    )
-    assert proc.states["grab-tail"].on["done"] == "snug-loop"
-    snug = proc.states["snug-loop"]
-    assert snug.on["done"] == snug.on["failed"] == "align-arm"
-    assert snug.params.robot == "stitcher"
-    np.testing.assert_allclose(snug.params.target, [0.0, -0.006, 0.0])
-
-
 SLIDE_OFF_TIED_LEAST_MM = 29.7
 """Least travel of the first throw's ``slide-off`` before its 0.5 N guard was met on the
 throws that tied a trefoil (one turn, stitched start: seeds 1-3, 66.19-66.29 mm; the
