@@ -121,8 +121,11 @@ def test_travel_is_the_tool_tip_moving_along_its_axis_and_round_its_remote_centr
     assert turn.robots["b"].travel_mm == pytest.approx(2 * 100.0 * math.sin(THETA / 2), rel=1e-9)
     assert turn.robots["b"].path_mm == pytest.approx(100.0 * THETA, rel=1e-5)
     assert turn.robots["a"].travel_mm == pytest.approx(0.0, abs=1e-9)
-    # each state starts where the last ended: the insertion's end is not counted twice
     assert rows["approach"].robots["a"].travel_mm == pytest.approx(0.0, abs=1e-12)
+    # each state starts where the last ended: ``tied`` has no joint message of its own,
+    # and its tips stand where ``turn`` left them (no travel, rather than none known)
+    assert rows["tied"].robots["b"].travel_mm == 0.0
+    assert rows["tied"].robots["b"].path_mm == 0.0
     assert (insert.start_s, insert.end_s) == (1.0, pytest.approx(2.0))
 
 

@@ -26,11 +26,10 @@ from typing import Any, TextIO
 __all__ = ["steps_command"]
 
 
-def _rows(trace: Path, states: Sequence[str]) -> list[dict[str, Any]]:
-    """One flat dict per state of ``trace``, labelled with its run."""
-    from suture_engine.report.steps import run_label, state_measures
+def _rows(trace: Path, label: dict[str, Any], states: Sequence[str]) -> list[dict[str, Any]]:
+    """One flat dict per state of ``trace``, labelled with its run's ``label``."""
+    from suture_engine.report.steps import state_measures
 
-    label = run_label(trace)
     rows: list[dict[str, Any]] = []
     for s in state_measures(trace, states=states):
         row: dict[str, Any] = {
@@ -58,11 +57,8 @@ def _num(value: Any, digits: int) -> str:
     return "-" if value is None else f"{value:.{digits}f}"
 
 
-def _text(trace: Path, rows: list[dict[str, Any]], out: TextIO) -> None:
+def _text(trace: Path, label: dict[str, Any], rows: list[dict[str, Any]], out: TextIO) -> None:
     robots = sorted({k.split(".", 1)[0] for r in rows for k in r if k.endswith(".travel_mm")})
-    from suture_engine.report.steps import run_label
-
-    label = run_label(trace)
     out.write(
         f"{trace}  (outcome {label.get('outcome') or '?'}, knot {label.get('knot') or '?'})\n"
     )
@@ -116,18 +112,21 @@ def steps_command(
     if csv_path is not None and (csv_path.is_dir() or not csv_path.parent.is_dir()):
         err.write(f"error: {csv_path}: cannot write a CSV file there\n")
         return 2
-    per_trace: list[tuple[Path, list[dict[str, Any]]]] = []
+    from suture_engine.report.steps import run_label
+
+    per_trace: list[tuple[Path, dict[str, Any], list[dict[str, Any]]]] = []
     for trace in traces:
         try:
-            rows = _rows(trace, states)
+            label = run_label(trace)
+            rows = _rows(trace, label, states)
         except TraceError as exc:
             err.write(f"error: {exc}\n")
             return 2 if isinstance(exc, TraceIOError) else 1
         if not states and all(r["state"] == "(start)" for r in rows):
             err.write(f"error: {trace}: no states recorded (no /transitions messages)\n")
             return 1
-        per_trace.append((trace, rows))
-    flat = [r for _, rows in per_trace for r in rows]
+        per_trace.append((trace, label, rows))
+    flat = [r for _, _, rows in per_trace for r in rows]
     if csv_path is not None:
         fields: list[str] = []
         for r in flat:
@@ -142,6 +141,6 @@ def steps_command(
     if as_json:
         out.write(json.dumps(flat, indent=1) + "\n")
         return 0
-    for trace, rows in per_trace:
-        _text(trace, rows, out)
+    for trace, label, rows in per_trace:
+        _text(trace, label, rows, out)
     return 0

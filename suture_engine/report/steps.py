@@ -94,7 +94,7 @@ class StateMeasures:
 class _Robot:
     """Running sums of one robot over the current state."""
 
-    __slots__ = ("end", "first", "last", "path", "peak", "tip0", "tip1")
+    __slots__ = ("first", "last", "path", "peak", "tip0", "tip1")
 
     def __init__(self) -> None:
         self.tip0: tuple[float, float, float] | None = None
@@ -103,7 +103,6 @@ class _Robot:
         self.first: float | None = None
         self.last: float | None = None
         self.peak: float | None = None
-        self.end = False
 
     def tip(self, position: Sequence[float]) -> None:
         if len(position) != ENDOBOT_JOINTS:
