@@ -18,6 +18,13 @@ interface and in the engine. Pin it to one core on a shared machine:
         [--set stitch=true ...]
 
 ``--profile DIR`` also writes a pyinstrument text profile of each run to DIR.
+
+``--simulator-steps N`` also records PyBullet's own timings (its Chrome-trace state log)
+over the run's first N physics steps, and prints where a step's time goes inside
+``stepSimulation``: the constraint solver, collision detection (AABB update, broadphase,
+narrowphase), the multibody integration, and how many contact and friction constraints
+a step sets up. PyBullet's log buffer holds about a million events, some 1200 steps of
+the thread scene; a longer window is cut where the buffer ends.
 """
 
 from __future__ import annotations
@@ -50,6 +57,8 @@ class Split(NamedTuple):
         simulator_wall_s: wall time in PyBullet's ``stepSimulation`` alone (part of
             ``physics_wall_s``; the rest is the backend's own per-step work) [s].
         simulator_cpu_s: CPU time in it [s].
+        phases: inside ``stepSimulation`` over the first steps, from PyBullet's own
+            timing log (``--simulator-steps``), or None.
     """
 
     backend: str
@@ -64,6 +73,99 @@ class Split(NamedTuple):
     ticks: int
     simulator_wall_s: float = 0.0
     simulator_cpu_s: float = 0.0
+    phases: SimulatorPhases | None = None
+
+
+SIMULATOR_PHASES: tuple[tuple[str, str], ...] = (
+    ("internalSingleStepSimulation", "one physics step (all of it)"),
+    ("processIslands", "  constraint solver (islands)"),
+    ("solveGroupCacheFriendlySetup", "    set-up of the constraints"),
+    ("solveGroupCacheFriendlyIterations", "    iterations"),
+    ("performDiscreteCollisionDetection", "  collision detection"),
+    ("updateAabbs", "    bounding boxes (AABB update)"),
+    ("calculateOverlappingPairs", "    broadphase pairs"),
+    ("dispatchAllCollisionPairs", "    narrowphase (contact points)"),
+    ("btMultiBody stepVelocities", "  multibody velocities"),
+    ("btMultiBody stepPositions", "  multibody positions"),
+    ("calculateSimulationIslands", "  islands"),
+)
+"""PyBullet's timing scopes shown, in the order printed, with what each is."""
+
+_COUNTED = {
+    "setupMultiBodyContactConstraint": "contact constraints",
+    "addMultiBodyFrictionConstraint": "friction constraints",
+}
+
+
+class SimulatorPhases(NamedTuple):
+    """Where PyBullet's physics steps spent their time, from its timing log.
+
+    Attributes:
+        steps: physics steps in the log (``internalSingleStepSimulation`` scopes).
+        us_per_step: per timing scope of :data:`SIMULATOR_PHASES`, its total time over
+            the log per step [us].
+        per_step: per counted scope (contact and friction constraints set up), its
+            calls per step.
+    """
+
+    steps: int
+    us_per_step: dict[str, float]
+    per_step: dict[str, float]
+
+
+def simulator_phases(path: Path) -> SimulatorPhases:
+    """Read a PyBullet ``STATE_LOGGING_PROFILE_TIMINGS`` file (Chrome trace events).
+
+    Every scope is written as a ``B`` event and its ``E`` event, its name suffixed with
+    a running counter; a scope's time is its ``E`` minus its ``B`` timestamp [us]. A
+    file cut short is read up to its last whole event.
+
+    Args:
+        path: the log file (PyBullet appends ``_0.json`` to the name it is given).
+
+    Raises:
+        ValueError: the file holds no physics step.
+    """
+    import json
+    import re
+
+    text = path.read_text()
+    try:
+        events = json.JSONDecoder().raw_decode(text)[0]["traceEvents"]
+    except (json.JSONDecodeError, KeyError, TypeError):
+        body = text[text.find("[") + 1 :]
+        events = json.loads("[" + body[: body.rfind("}") + 1] + "]")
+    suffix = re.compile(r"\d+$")
+    totals: dict[str, float] = {}
+    calls: dict[str, int] = {}
+    begun: dict[str, float] = {}
+    for e in events:
+        name = suffix.sub("", str(e.get("name", "")))
+        if e.get("ph") == "B":
+            begun[name] = float(e["ts"])
+        elif e.get("ph") == "E" and name in begun:
+            totals[name] = totals.get(name, 0.0) + float(e["ts"]) - begun.pop(name)
+            calls[name] = calls.get(name, 0) + 1
+    steps = calls.get("internalSingleStepSimulation", 0)
+    if steps == 0:
+        raise ValueError(f"{path}: no physics step in the timing log")
+    return SimulatorPhases(
+        steps=steps,
+        us_per_step={n: totals.get(n, 0.0) / steps for n, _ in SIMULATOR_PHASES},
+        per_step={label: calls.get(n, 0) / steps for n, label in _COUNTED.items()},
+    )
+
+
+def phases_report(phases: SimulatorPhases) -> str:
+    """The breakdown of a physics step, as printed."""
+    whole = phases.us_per_step["internalSingleStepSimulation"] or float("nan")
+    lines = [f"  inside stepSimulation, {phases.steps} physics steps (PyBullet's timing log):"]
+    for name, label in SIMULATOR_PHASES:
+        us = phases.us_per_step[name]
+        lines.append(f"    {label:<36s}: {us:7.1f} us per step ({100 * us / whole:5.1f} %)")
+    counts = ", ".join(f"{v:.1f} {k}" for k, v in phases.per_step.items())
+    lines.append(f"    set up per step: {counts}")
+    return "\n".join(lines)
 
 
 class _TimedTruth(Mapping[str, Any]):
@@ -121,19 +223,41 @@ def run(
     max_time_s: float,
     profile_dir: Path | None,
     sets: Sequence[str] = (),
+    simulator_steps: int = 0,
 ) -> Split:
     """Run ``procedure`` on ``backend`` (parameters overridden by ``sets``) and split its
-    time."""
+    time; with ``simulator_steps`` > 0, PyBullet's timing log over that many first ticks
+    too (a backend with a PyBullet ``client``)."""
     from suture_engine.runtime.run import run_procedure
 
     physics, io, simulator = _Clock(), _Clock(), _Clock()
-    state: dict[str, Any] = {}
+    state: dict[str, Any] = {"ticks": 0}
+    log_dir = tempfile.TemporaryDirectory()
+    log_path = Path(log_dir.name) / "timings"
+
+    def stop_log(be: Any) -> None:
+        if "log" in state:
+            import pybullet
+
+            pybullet.stopStateLogging(state.pop("log"), physicsClientId=be.client)
 
     def on_tick(interp: Any) -> None:
         # Called after each tick's trace record, before apply and step: the first call
         # wraps the backend (instance attributes shadow its methods).
+        state["ticks"] += 1
+        if state["ticks"] == simulator_steps + 1:
+            stop_log(interp.backend)
         if "wrapped" in state:
             return
+        if simulator_steps > 0 and getattr(interp.backend, "client", None) is not None:
+            import pybullet
+
+            state["log"] = pybullet.startStateLogging(
+                pybullet.STATE_LOGGING_PROFILE_TIMINGS,
+                str(log_path),
+                physicsClientId=interp.backend.client,
+            )
+            state["backend"] = interp.backend
         be = interp.backend
         be.step = physics.wrap(be.step)
         for name in ("observe", "apply"):
@@ -170,6 +294,19 @@ def run(
         profile_dir.mkdir(parents=True, exist_ok=True)
         text = profiler.output_text(unicode=False, color=False)
         (profile_dir / f"procedure_rtf_{backend}.txt").write_text(text)
+    phases = None
+    if simulator_steps > 0:
+        if "log" in state:
+            import pybullet
+
+            try:  # the run ended inside the window: its client may be gone
+                stop_log(state["backend"])
+            except pybullet.error:
+                state.pop("log", None)
+        written = sorted(Path(log_dir.name).glob("timings*.json"))
+        if written:
+            phases = simulator_phases(written[0])
+    log_dir.cleanup()
     s = result.summary
     return Split(
         backend=backend,
@@ -184,6 +321,7 @@ def run(
         ticks=s.ticks,
         simulator_wall_s=simulator.wall_ns / 1e9,
         simulator_cpu_s=simulator.cpu_ns / 1e9,
+        phases=phases,
     )
 
 
@@ -212,6 +350,8 @@ def report(split: Split) -> str:
         f" (stepSimulation {1e6 * s.simulator_cpu_s / max(s.ticks, 1):.0f} us);"
         f" measurement interface {1e6 * s.io_cpu_s / max(s.ticks, 1):.0f} us",
     ]
+    if s.phases is not None:
+        lines.append(phases_report(s.phases))
     return "\n".join(lines)
 
 
@@ -227,6 +367,14 @@ def main() -> None:
     ap.add_argument("--max-time", type=float, default=300.0, help="simulated time limit [s]")
     ap.add_argument("--profile", type=Path, default=None, help="write pyinstrument profiles here")
     ap.add_argument(
+        "--simulator-steps",
+        type=int,
+        default=0,
+        help="record PyBullet's own timings over this many first physics steps and print"
+        " where a step's time goes (about 1200 fit its log on the thread scene; the"
+        " logging slows those steps, so read the shares)",
+    )
+    ap.add_argument(
         "--set",
         dest="sets",
         action="append",
@@ -237,7 +385,10 @@ def main() -> None:
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"{args.procedure.name}, max {args.max_time:g} s simulated; load average {load:.2f}")
     for backend in args.backend or ["pybullet", "pybullet-surgical"]:
-        print(report(run(args.procedure, backend, args.max_time, args.profile, args.sets)))
+        split = run(
+            args.procedure, backend, args.max_time, args.profile, args.sets, args.simulator_steps
+        )
+        print(report(split))
 
 
 if __name__ == "__main__":
