@@ -11,6 +11,7 @@ minimisation, not the skill's own closed form.
 from __future__ import annotations
 
 import itertools
+import json
 import math
 from pathlib import Path
 from typing import Any
@@ -735,6 +736,50 @@ def test_the_turned_throws_clear_jaws_locks_once_the_loop_catches_on_the_arm(ali
         assert bound == proc.states["mirrored-knot"].use.params["max_tension"]
 
 
+@pytest.mark.parametrize("align", [True, False])
+def test_a_loop_caught_in_clear_jaws_is_retried_once_with_the_throws_own_moves(
+    align: bool,
+) -> None:
+    """A catch in the mirrored ``clear-jaws`` (its bound crossed) leads, once, to a retry:
+    the holder back to ``hold-back``'s place, the arm forward by ``draw-tail``'s own move
+    undone, then ``draw-tail`` and ``clear-jaws`` again with their own targets, speeds and
+    bound (the moves whose checks were measured), and on to ``slide-off``. A second catch
+    locks the robots. The first throw and the unmirrored second throw have no retry."""
+    from suture_engine.runtime.automaton import Then
+    from suture_engine.runtime.plan import compile_procedure
+
+    params = {"algorithm": 3, "align_mirror": align}
+    proc: Any = load_procedure(ROOT / "procedures" / "square-knot.yaml", params=params)
+    steps = compile_procedure(proc).steps
+    sub = proc.states["mirrored-knot"].use.states
+    chain = ["slacken", "ease-arm", "redraw-tail", "reclear-jaws"]
+    caught = steps["mirrored-knot.clear-jaws"].policy
+    assert caught.retry == 0 and caught.goto == "mirrored-knot.slacken"
+    for a, b in itertools.pairwise(chain):
+        assert steps[f"mirrored-knot.{a}"].on_done == f"mirrored-knot.{b}"
+        assert steps[f"mirrored-knot.{a}"].enabled
+    again = steps["mirrored-knot.reclear-jaws"]
+    assert again.on_done == "mirrored-knot.slide-off"
+    assert again.policy.goto is None and again.policy.retry == 0
+    assert again.policy.then is Then.LOCK
+    bound = steps["mirrored-knot.clear-jaws"].invariant.max_tension_N
+    assert again.invariant.max_tension_N == bound
+    # the throw's own moves, with nothing changed
+    assert sub["reclear-jaws"].params == sub["clear-jaws"].params
+    assert sub["redraw-tail"].params == sub["draw-tail"].params
+    hold, back = sub["hold-back"].params, sub["slacken"].params
+    assert (back.target, back.offset, back.robot) == (hold.target, hold.offset, hold.robot)
+    assert back.until_tension is None  # all the way back, whatever the strand reads
+    ease, draw = sub["ease-arm"].params, sub["draw-tail"].params
+    assert ease.relative_to == draw.relative_to == "grasper"
+    assert np.allclose(np.asarray(ease.target), -np.asarray(draw.target))
+    # no retry where there is no mirrored clear-jaws
+    first: Any = load_procedure(PROC, params={"stitch": False})
+    granny: Any = load_procedure(PROC, params={"second": True, "stitch": False})
+    for proc_ in (first, granny):
+        assert not any(proc_.states[name].enabled for name in chain)
+
+
 @pytest.mark.parametrize(
     ("procedure", "params", "checked"),
     [
@@ -900,6 +945,47 @@ def test_the_square_knots_mirrored_throw_that_ties_nothing_stops_the_run(
     assert ("done:mirrored-knot.slide-off" in details) is (step == "tighten")
     assert summary["knot"]["type"] == "trefoil"
     assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
+
+
+@pytest.mark.slow
+def test_a_caught_mirrored_loop_is_freed_by_the_retry_on_friction_draw_14(tmp_path: Path) -> None:
+    """Friction draw 14 of ``knot_success.py --seeds 20 --only friction`` (algorithm 3):
+    the mirrored loop catches on the jaws in ``clear-jaws`` (the grasper's estimate over
+    its 1.4 N bound), where the robots used to lock with the first trefoil alone. The
+    retry slackens the strand, the square forms as the arm eases forward, and the throw
+    goes on through ``draw-tail`` and ``clear-jaws`` again to a square that the ground
+    truth confirms (docs/status.md, "The caught loop, retried")."""
+    from benchmark_modules import load_benchmark
+
+    from suture_engine.runtime.run import run_procedure
+    from suture_engine.trace.reader import TraceReader
+
+    backend = "pybullet-surgical-stitched"
+    seed, options = load_benchmark("branch_sensitivity").sweep_run("3:14", backend, 0, "friction")
+    result = run_procedure(
+        str(ROOT / "procedures" / "square-knot.yaml"),
+        backend=backend,
+        seed=seed,
+        sets=["algorithm=3"],
+        out=tmp_path / "run",
+        max_time_s=260.0,
+        backend_options=options,
+    )
+    trace = TraceReader(tmp_path / "run" / "trace.mcap")
+    events = [m.data for m in trace.messages(["/events"])]
+    # hold-back's guard reports its place reached with the strand slack (by design)
+    faults = [e for e in events if e["kind"] == "unpredictable"]
+    assert [e["state"] for e in faults] == [
+        "autonomous/mirrored-knot.hold-back",
+        "autonomous/mirrored-knot.clear-jaws",
+    ], faults
+    assert faults[1]["detail"].startswith("invariant:tension:endobot_2")
+    details = [e["detail"] for e in events]
+    for step in ("slacken", "ease-arm", "redraw-tail", "reclear-jaws", "slide-off", "tighten"):
+        assert f"done:mirrored-knot.{step}" in details, step
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["outcome"] == result.summary.outcome
+    _assert_square(summary)
 
 
 def _assert_square(summary: dict[str, Any]) -> None:
