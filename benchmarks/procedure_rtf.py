@@ -117,8 +117,8 @@ def simulator_phases(path: Path) -> SimulatorPhases:
     """Read a PyBullet ``STATE_LOGGING_PROFILE_TIMINGS`` file (Chrome trace events).
 
     Every scope is written as a ``B`` event and its ``E`` event, its name suffixed with
-    a running counter; a scope's time is its ``E`` minus its ``B`` timestamp [us]. A
-    file cut short is read up to its last whole event.
+    a running counter; a scope's time is its ``E`` minus its ``B`` timestamp [us]. When
+    PyBullet's buffer fills, it writes the events it holds, a whole file.
 
     Args:
         path: the log file (PyBullet appends ``_0.json`` to the name it is given).
@@ -129,12 +129,7 @@ def simulator_phases(path: Path) -> SimulatorPhases:
     import json
     import re
 
-    text = path.read_text()
-    try:
-        events = json.JSONDecoder().raw_decode(text)[0]["traceEvents"]
-    except (json.JSONDecodeError, KeyError, TypeError):
-        body = text[text.find("[") + 1 :]
-        events = json.loads("[" + body[: body.rfind("}") + 1] + "]")
+    events = json.loads(path.read_text())["traceEvents"]
     suffix = re.compile(r"\d+$")
     totals: dict[str, float] = {}
     calls: dict[str, int] = {}
@@ -232,8 +227,7 @@ def run(
 
     physics, io, simulator = _Clock(), _Clock(), _Clock()
     state: dict[str, Any] = {"ticks": 0}
-    log_dir = tempfile.TemporaryDirectory()
-    log_path = Path(log_dir.name) / "timings"
+    log_dir = tempfile.TemporaryDirectory() if simulator_steps > 0 else None
 
     def stop_log(be: Any) -> None:
         if "log" in state:
@@ -249,15 +243,23 @@ def run(
             stop_log(interp.backend)
         if "wrapped" in state:
             return
-        if simulator_steps > 0 and getattr(interp.backend, "client", None) is not None:
+        if log_dir is not None and getattr(interp.backend, "client", None) is not None:
             import pybullet
 
+            be = interp.backend
             state["log"] = pybullet.startStateLogging(
                 pybullet.STATE_LOGGING_PROFILE_TIMINGS,
-                str(log_path),
-                physicsClientId=interp.backend.client,
+                str(Path(log_dir.name) / "timings"),
+                physicsClientId=be.client,
             )
-            state["backend"] = interp.backend
+            # a run that ends inside the window: the log is written before the client goes
+            close = be.close
+
+            def close_after_log() -> None:
+                stop_log(be)
+                close()
+
+            be.close = close_after_log
         be = interp.backend
         be.step = physics.wrap(be.step)
         for name in ("observe", "apply"):
@@ -295,18 +297,11 @@ def run(
         text = profiler.output_text(unicode=False, color=False)
         (profile_dir / f"procedure_rtf_{backend}.txt").write_text(text)
     phases = None
-    if simulator_steps > 0:
-        if "log" in state:
-            import pybullet
-
-            try:  # the run ended inside the window: its client may be gone
-                stop_log(state["backend"])
-            except pybullet.error:
-                state.pop("log", None)
+    if log_dir is not None:
         written = sorted(Path(log_dir.name).glob("timings*.json"))
         if written:
             phases = simulator_phases(written[0])
-    log_dir.cleanup()
+        log_dir.cleanup()
     s = result.summary
     return Split(
         backend=backend,

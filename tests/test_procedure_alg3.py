@@ -772,6 +772,7 @@ def test_a_loop_caught_in_clear_jaws_is_retried_once_with_the_throws_own_moves(
     assert back.until_tension is None  # all the way back, whatever the strand reads
     ease, draw = sub["ease-arm"].params, sub["draw-tail"].params
     assert ease.relative_to == draw.relative_to == "grasper"
+    assert np.allclose(np.asarray(draw.target), [20e-3, 0.0, 3e-3])  # one turn's draw
     assert np.allclose(np.asarray(ease.target), -np.asarray(draw.target))
     # no retry where there is no mirrored clear-jaws
     first: Any = load_procedure(PROC, params={"stitch": False})
