@@ -5,9 +5,16 @@ Runs ``procedures/square-knot.yaml --set algorithm=N`` on the surgical PyBullet 
 ``numpy.random.SeedSequence([base_seed, algorithm, run])`` (so a run's inputs do not
 depend on the number of workers or on the other algorithms):
 
-- base calibration error: each robot's actual base displaced from the declared one by a
-  vector with independent N(0, sigma^2) components, sigma = 1 mm (the skills' model is
-  off by that much);
+- base calibration error: a vector e per robot with independent N(0, sigma^2)
+  components, sigma = 1 mm, between where the robot's base stands and where the skills
+  believe it stands. ``--base-error-as`` says which of the two is off the scene's layout:
+  ``placement`` (the default so far): the robot is built at the declared base + e and the
+  skills plan from the declared one; ``calibration``: the robot is built at the declared
+  base and the skills plan from the declared base - e
+  (:mod:`suture_engine.runtime.calibration`). Either way the tool tips land about e off
+  their goals; they differ once a ``register`` step has measured the base: a placement
+  error then leaves the ports where they were moved to, a calibration error leaves
+  nothing;
 - joint friction: every joint's friction scaled by one factor ~ U(0.7, 1.3);
 - suture stiffness: the thread's stiffness scaled by one factor ~ U(0.8, 1.2). On the
   surgical backend this scales the thread's bending stiffness EI, whose default is 0 (the
@@ -95,7 +102,7 @@ STIFFNESS_RANGE = (0.8, 1.2)
 """Range of the suture stiffness scale [-] (+-20 %)."""
 
 OPTION_NAMES: dict[str, tuple[str, ...]] = {
-    "base_error": ("base_error", "base_offsets", "base_offset", "calibration_error"),
+    "base_error": ("base_error", "base_offsets", "base_offset"),
     "friction_scale": ("friction_scale", "joint_friction_scale"),
     "stiffness_scale": ("suture_stiffness_scale", "stiffness_scale"),
 }
@@ -235,6 +242,25 @@ class Job(NamedTuple):
     max_time_s: float
     single: bool = False
     sets: tuple[str, ...] = ()
+    calibration: dict[str, tuple[float, float, float]] | None = None
+    """Robot -> believed base minus actual [m] (``--base-error-as calibration``), or None."""
+
+
+BASE_ERROR_AS = ("placement", "calibration")
+"""``--base-error-as`` choices: where a draw's base error goes (module doc)."""
+
+
+def as_calibration(job: Job) -> Job:
+    """The job with its base error as a calibration error: the backend gets none (the
+    robots stand where the scene declares them) and the skills' believed bases are the
+    declared ones minus the draw's error, so that the tool tips land where a placement
+    error of the same draw puts them."""
+    errors = job.perturbation.base_error
+    options = {k: v for k, v in job.options.items() if k not in OPTION_NAMES["base_error"]}
+    if not errors:
+        return job._replace(options=options)
+    calibration = {r: (-float(e[0]), -float(e[1]), -float(e[2])) for r, e in errors.items()}
+    return job._replace(options=options, calibration=calibration)
 
 
 class Row(NamedTuple):
@@ -424,6 +450,7 @@ def run_one(job: Job) -> Row:
                 out=job.out_dir,
                 max_time_s=job.max_time_s,
                 backend_options=job.options or None,
+                calibration_error=job.calibration,
             )
     except Exception as exc:  # a physics blow-up counts as a failed run, with its reason
         wall = time.perf_counter() - start
@@ -632,6 +659,14 @@ def main(argv: Sequence[str]) -> int:
         "poses exact) or its relative part (each minus the mean)",
     )
     ap.add_argument(
+        "--base-error-as",
+        choices=BASE_ERROR_AS,
+        default="placement",
+        help="each base error as a placement (the robot built off its declared base) or a "
+        "calibration error (the robot where declared, the skills' belief off); give "
+        "--resume only with the same choice",
+    )
+    ap.add_argument(
         "--bending-stiffness", type=float, default=None, help="nominal thread EI [N*m^2]"
     )
     ap.add_argument(
@@ -713,6 +748,11 @@ def main(argv: Sequence[str]) -> int:
     if any("=" not in v for v in args.set):
         ap.error(f"--set: NAME=VALUE, got {args.set!r}")
     jobs = [j._replace(single=args.single, sets=tuple(args.set)) for j in jobs]
+    calibrated = args.base_error_as == "calibration"
+    if calibrated:
+        if not perturb:
+            ap.error("--base-error-as calibration: not with --no-perturb")
+        jobs = [as_calibration(j) for j in jobs]
     if args.runs is not None:
         try:
             chosen = parse_runs(args.runs, args.seeds)
@@ -783,6 +823,8 @@ def main(argv: Sequence[str]) -> int:
             print(f"  (--only {','.join(only)}: the others stay nominal)")
         if args.base_part != "all":
             print(f"  (--base-part {args.base_part}: that part of each base error only)")
+        if calibrated and (only is None or "base" in only):
+            print("  (base error as a calibration error: the robots stand where declared)")
         if missing:
             print(f"NOT applied (the backend takes no option for them): {', '.join(missing)}")
         if (

@@ -79,6 +79,15 @@ def run(
             "(grammar and kinds: docs/faults.md).",
         ),
     ] = None,
+    calibration_error: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--calibration-error",
+            help="Simulate a calibration error (repeatable): ROBOT=X,Y,Z, the believed base "
+            "minus the actual one in mm, e.g. endobot_2=1,0,-0.5. The robot stands where "
+            "the scene puts it; the skills plan from the base off by this.",
+        ),
+    ] = None,
 ) -> None:
     """Run a procedure; write DIR/trace.mcap and DIR/summary.json."""
     from suture_engine.runtime.cli_run import run_command
@@ -98,6 +107,7 @@ def run(
             video=video,
             video_interval=video_interval,
             faults=fault or [],
+            calibration=calibration_error or [],
         )
     )
 

@@ -434,3 +434,22 @@ def test_the_knots_lay_is_read_from_the_summary_and_counted_over_the_successes(
     cut = [",".join(line.split(",")[:-1]) for line in text]
     path.write_text("\n".join(cut) + "\n")
     assert [r.knot_lay for r in ks.read_csv(path)] == [""] * 5
+
+
+def test_a_base_error_as_calibration_leaves_the_robots_where_declared() -> None:
+    accepted = {"base_error", "friction_scale"}
+    placed = _jobs([3], accepted)
+    calibrated = [ks.as_calibration(j) for j in placed]
+    for p, c in zip(placed, calibrated, strict=True):
+        assert "base_error" in p.options and p.calibration is None
+        # the backend builds no base error; the friction draw goes on as it was
+        assert "base_error" not in c.options
+        assert c.options["friction_scale"] == p.options["friction_scale"]
+        # the skills' belief is off by minus the draw, so the tips land as placed ones do
+        for robot, e in p.perturbation.base_error.items():
+            np.testing.assert_array_equal(c.calibration[robot], -np.asarray(e))
+        assert (c.seed, c.perturbation) == (p.seed, p.perturbation)
+    with pytest.raises(SystemExit) as err:
+        ks.main(["--algorithms", "3", "--seeds", "1", "--base-error-as", "calibration",
+                 "--no-perturb"])  # fmt: skip
+    assert err.value.code == 2

@@ -90,9 +90,13 @@ def run_command(
     video: Path | None = None,
     video_interval: float = 0.1,
     faults: Sequence[str] = (),
+    calibration: Sequence[str] = (),
 ) -> int:
     """``suture run``: returns the exit code. ``backend`` None: the procedure's own
     ``backend:``, else ``pybullet``.
+
+    A ``--calibration-error`` that is not ``ROBOT=X,Y,Z`` is a usage error (exit 2); one
+    naming a robot the scene does not have is invalid input (exit 1).
 
     A ``--fault`` that does not parse, or that the backend cannot simulate, is a usage
     error (exit 2); one whose field the fault model refuses is invalid input (exit 1).
@@ -116,6 +120,16 @@ def run_command(
         backend = declared_backend(file, sets)
     if not 0.0 < max_time < float("inf"):
         _error(f"--max-time must be a positive, finite number of seconds, found {max_time:g}")
+        return 2
+    from suture_engine.runtime.calibration import CalibrationSpecError, parse_calibration_spec
+
+    calibration_error: dict[str, tuple[float, float, float]] = {}
+    try:
+        for spec in calibration:
+            robot, vector = parse_calibration_spec(spec)
+            calibration_error[robot] = vector
+    except CalibrationSpecError as exc:
+        _error(f"{exc.code}: {exc.message}")
         return 2
     if operator is not None and not operator.is_file():
         _error(f"--operator {operator}: {'a folder' if operator.is_dir() else 'no such file'}")
@@ -164,6 +178,7 @@ def run_command(
             backend_options=options,
             on_tick=_chain(hooks),
             faults=faults,
+            calibration_error=calibration_error or None,
         )
     except ProcedureLoadError as exc:
         for problem in exc.problems:

@@ -29,7 +29,7 @@ import dataclasses
 import json
 import math
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict
 from typing import Any, Protocol
 
@@ -37,6 +37,7 @@ import numpy as np
 
 from suture_engine.errors import SutureError
 from suture_engine.runtime.automaton import Automaton, Mode, Plan, StepSpec
+from suture_engine.runtime.calibration import calibration_offsets
 from suture_engine.runtime.context import SkillContext
 from suture_engine.runtime.controller import ModeController
 from suture_engine.runtime.monitor import BaseSensorTension, Invariant, Monitor, SafetyLimits
@@ -114,6 +115,10 @@ class Interpreter:
         max_stale_s: the monitor locks every robot when a sensor stays stale (dropped
             readings) longer than this [s]; shorter dropouts are absorbed.
         tension_cutoff_hz: low-pass cut-off of the base-sensor tension estimate [Hz].
+        calibration_error: robot -> the engine's believed base position minus the
+            robot's actual one [m] (a simulated calibration error: the backend builds
+            the robots where the scene declares them, the skills plan from the scene's
+            bases plus this). A ``register`` step measures it and takes it out.
     """
 
     def __init__(
@@ -138,6 +143,7 @@ class Interpreter:
         emergency_margin: float = 0.1,
         max_stale_s: float = 0.01,
         tension_cutoff_hz: float = 30.0,
+        calibration_error: Mapping[str, Sequence[float]] | None = None,
     ) -> None:
         from suture_engine.control.filters import WashoutFilter
 
@@ -161,8 +167,11 @@ class Interpreter:
         self.robots = tuple(first.robots)
         self.geometry: SceneGeometry = backend.geometry()
         self._washout = {r: WashoutFilter(washout_pole, self.dt) for r in self.robots}
-        self._base_offsets: dict[str, tuple[float, float, float]] = {}
-        """Robot -> base position correction [m] measured by a ``register`` step."""
+        self._base_offsets: dict[str, tuple[float, float, float]] = calibration_offsets(
+            calibration_error, scene
+        )
+        """Robot -> the believed base's offset from the declared one [m]: the calibration
+        error, plus the corrections a ``register`` step has measured."""
         gravity: dict[str, tuple[float, float, float]] = {}
         for name, (_pos, rot) in self._base_poses().items():
             g = np.asarray(rot).reshape(3, 3).T @ np.array([0.0, 0.0, -GRAVITY])

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from suture_engine.errors import SutureError
+from suture_engine.runtime.calibration import calibration_offsets
 from suture_engine.runtime.summary import RunSummary, write_summary
 
 __all__ = [
@@ -280,6 +281,7 @@ def run_procedure(
     backend_options: dict[str, Any] | None = None,
     on_tick: Callable[[Any], None] | None = None,
     faults: Sequence[str] = (),
+    calibration_error: Mapping[str, Sequence[float]] | None = None,
 ) -> RunResult:
     """Run a procedure file; write ``trace.mcap`` and ``summary.json``.
 
@@ -299,6 +301,10 @@ def run_procedure(
         on_tick: called after every tick with the interpreter (live panel, video).
         faults: ``--fault`` specs (:mod:`suture_engine.faults.syntax`), injected with the
             scene's ``faults:`` by a :class:`~suture_engine.faults.backend.FaultyBackend`.
+        calibration_error: robot -> its believed base position minus its actual one [m]:
+            the robots stand where the scene declares them and the skills plan from bases
+            off by this (:mod:`suture_engine.runtime.calibration`). Recorded in the
+            trace's metadata, and applied again by a replay.
 
     Raises:
         ProcedureLoadError, SetOverrideError, OperatorFileError, UnknownBackend,
@@ -312,6 +318,7 @@ def run_procedure(
     from suture_engine.runtime.recorder import TraceRecorder
 
     proc, plan = load_plan(path, sets)
+    calibration = calibration_offsets(calibration_error, proc.scene)
     if backend is None:
         backend = proc.backend or DEFAULT_BACKEND
     run_faults = _run_faults(proc, plan, backend, faults)
@@ -364,7 +371,7 @@ def run_procedure(
             robots=tuple(first.robots),
             backend=backend,
             params={k: _jsonable(v) for k, v in proc.params.items()},
-            extra=_meta_extra(path, sets, run_faults),
+            extra=_meta_extra(path, sets, run_faults, calibration),
         )
         interp = Interpreter(
             plan,
@@ -382,6 +389,7 @@ def run_procedure(
             progress=progress,
             manual_invariant=manual_inv,
             on_tick=on_tick,
+            calibration_error=calibration,
         )
         if run_faults:
             from suture_engine.faults.record import trace_sink
@@ -396,7 +404,12 @@ def run_procedure(
     return RunResult(summary, out_dir, trace, summary_path)
 
 
-def _meta_extra(path: str | Path, sets: Sequence[str], faults: Sequence[Any]) -> dict[str, Any]:
+def _meta_extra(
+    path: str | Path,
+    sets: Sequence[str],
+    faults: Sequence[Any],
+    calibration: Mapping[str, Sequence[float]] | None = None,
+) -> dict[str, Any]:
     from suture_engine.arithmetic import arithmetic_record
 
     extra: dict[str, Any] = {
@@ -404,10 +417,23 @@ def _meta_extra(path: str | Path, sets: Sequence[str], faults: Sequence[Any]) ->
         "sets": list(sets),
         "arithmetic": arithmetic_record(),
     }
+    if calibration:
+        extra["calibration_error"] = {r: list(v) for r, v in calibration.items()}
     if faults:
         from suture_engine.faults.syntax import format_fault
 
         extra["faults"] = [format_fault(f) for f in faults]
+    return extra
+
+
+def _replay_extra(
+    proc_file: str | Path, sets: Sequence[str], calibration: Mapping[str, Sequence[float]]
+) -> dict[str, Any]:
+    """A replay's own metadata: the procedure, its ``--set`` values, and the calibration
+    error it applied again (when the recorded run had one)."""
+    extra: dict[str, Any] = {"procedure_file": str(proc_file), "sets": list(sets)}
+    if calibration:
+        extra["calibration_error"] = {r: list(v) for r, v in calibration.items()}
     return extra
 
 
@@ -549,6 +575,7 @@ def replay_trace(
             ]
         )
     proc, plan = load_plan(proc_file, run_sets)
+    calibration = calibration_offsets((extra or {}).get("calibration_error"), proc.scene)
     be = ReplayBackend(reader=reader)
     rate = be.rate
     tmp_dir = None
@@ -566,7 +593,7 @@ def replay_trace(
         robots=be.robots,
         backend=str(meta.get("backend", "replay")),
         params={k: _jsonable(v) for k, v in proc.params.items()},
-        extra={"procedure_file": str(proc_file), "sets": run_sets},
+        extra=_replay_extra(proc_file, run_sets, calibration),
     )
     scene = proc.scene
     interp = Interpreter(
@@ -582,6 +609,7 @@ def replay_trace(
         recorder=recorder,
         max_time_s=float("inf"),
         tension_limit_N=float(scene.tension_limit) if scene is not None else None,
+        calibration_error=calibration,
     )
     summary = interp.run(proc.name, "replay")
     ok, diff = True, ""
