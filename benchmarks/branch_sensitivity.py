@@ -310,11 +310,13 @@ def run_branches(
     max_time_s: float = 300.0,
     workers: int = 1,
     backend_options: Mapping[str, Any] | None = None,
+    calibration_error: Mapping[str, Any] | None = None,
 ) -> list[dict[str, Any]]:
     """Run ``procedure`` to the first tick of step ``at``; branch into the procedure as
     written and each variant; return one result per branch (as-written first).
     ``backend_options`` go to the backend's constructor (e.g. a sweep run's perturbation:
-    :func:`sweep_run`).
+    :func:`sweep_run`); ``calibration_error`` to the interpreter (robot -> believed base
+    minus actual [m]: :func:`sweep_calibration`).
 
     Raises:
         VariantError: a variant that cannot be applied (checked before the run starts,
@@ -373,7 +375,7 @@ def run_branches(
             control_rate_hz=1.0 / float(scene.physics.timestep) if scene is not None else 1000.0,
             recorder=recorder, max_time_s=max_time_s,
             tension_limit_N=float(scene.tension_limit) if scene is not None else None,
-            on_tick=on_tick,
+            on_tick=on_tick, calibration_error=calibration_error,
         )  # fmt: skip
         summary = interp.run(proc.name, backend or proc.backend or "pybullet")
     finally:
@@ -414,19 +416,45 @@ def run_branches(
 
 
 def sweep_run(
-    spec: str, backend: str, base_seed: int = 0, only: str | None = None
+    spec: str,
+    backend: str,
+    base_seed: int = 0,
+    only: str | None = None,
+    base_error_as: str = "placement",
 ) -> tuple[int, dict[str, Any]]:
     """The seed and backend options of run ``RUN`` of algorithm ``ALG`` (``spec`` is
     ``"ALG:RUN"``) in ``benchmarks/knot_success.py``'s perturbed sweep with ``base_seed``
     on ``backend``: branching from it starts where that sweep's run does, bit for bit.
     Give the sweep's procedure and ``--set`` values as well (``--set algorithm=ALG``).
     ``only`` is that sweep's ``--only`` text (``"friction"``, ``"base,friction"``: an
-    ablation), None for the whole perturbation.
+    ablation), None for the whole perturbation. ``base_error_as`` is that sweep's
+    ``--base-error-as``: with ``calibration`` the options carry no base error, and
+    :func:`sweep_calibration` gives the interpreter's.
 
     Raises:
         SweepRunError: ``spec`` is not ``ALG:RUN`` with two non-negative integers, or
             ``only`` names an unknown perturbation.
     """
+    job = _sweep_job(spec, backend, base_seed, only, base_error_as)
+    return job.seed, dict(job.options)
+
+
+def sweep_calibration(
+    spec: str,
+    backend: str,
+    base_seed: int = 0,
+    only: str | None = None,
+    base_error_as: str = "placement",
+) -> dict[str, Any] | None:
+    """The calibration error [m] of the sweep run that :func:`sweep_run` starts (None
+    unless ``base_error_as`` is ``calibration``); same arguments and errors."""
+    return _sweep_job(spec, backend, base_seed, only, base_error_as).calibration
+
+
+def _sweep_job(
+    spec: str, backend: str, base_seed: int, only: str | None, base_error_as: str
+) -> Any:
+    """knot_success's job for ``spec`` (``"ALG:RUN"``), as :func:`sweep_run` reads it."""
     m = re.fullmatch(r"\s*(\d+)\s*:\s*(\d+)\s*", spec)
     if m is None:
         raise SweepRunError(spec, "expected ALG:RUN, e.g. 3:6")
@@ -440,7 +468,10 @@ def sweep_run(
         [alg], run + 1, base_seed=base_seed, backend=backend, out=Path("unused"),
         max_time_s=0.0, perturb=True, accepted=ks.accepted_options(backend), only=kinds,
     )  # fmt: skip
-    return jobs[run].seed, dict(jobs[run].options)
+    if base_error_as not in ks.BASE_ERROR_AS:
+        raise SweepRunError(spec, f"--sweep-base-error-as: one of {', '.join(ks.BASE_ERROR_AS)}")
+    job = jobs[run]
+    return ks.as_calibration(job) if base_error_as == "calibration" else job
 
 
 def _knot_success() -> Any:
@@ -503,20 +534,25 @@ def main(argv: Sequence[str]) -> int:
         "--sweep-only", default=None, metavar="KINDS",
         help="that sweep's --only (comma-separated from base,friction,stiffness)",
     )  # fmt: skip
+    ap.add_argument(
+        "--sweep-base-error-as", default="placement", metavar="KIND",
+        help="that sweep's --base-error-as (placement or calibration)",
+    )  # fmt: skip
     args = ap.parse_args(argv)
     try:
         variants = [parse_variant(v) for v in args.variant]
-        seed, options = args.seed, {}
+        seed, options, calibration = args.seed, {}, None
         if args.sweep_run is not None:
             if args.backend is None:
                 raise SweepRunError(args.sweep_run, "needs --backend (the sweep's)")
-            seed, options = sweep_run(
-                args.sweep_run, args.backend, args.sweep_base_seed, args.sweep_only
-            )
+            sweep = (args.sweep_run, args.backend, args.sweep_base_seed, args.sweep_only,
+                     args.sweep_base_error_as)  # fmt: skip
+            seed, options = sweep_run(*sweep)
+            calibration = sweep_calibration(*sweep)
         results = run_branches(
             args.procedure, at=args.at, variants=variants, seed=seed, sets=args.sets,
             backend=args.backend, max_time_s=args.max_time, workers=max(1, args.workers),
-            backend_options=options,
+            backend_options=options, calibration_error=calibration,
         )  # fmt: skip
     except (SutureError, RuntimeError) as exc:
         print(f"error: {exc}", file=sys.stderr)

@@ -276,6 +276,23 @@ def test_a_branch_from_an_ablation_run_keeps_only_its_perturbations(tmp_path: Pa
             bs.sweep_run("3:1", "pybullet-surgical-stitched", only=bad)
 
 
+def test_a_branch_from_a_calibration_sweep_run_moves_the_belief_not_the_robot() -> None:
+    """``--sweep-base-error-as calibration``: the backend builds the robots where declared,
+    and the interpreter plans from bases off by minus that run's draw."""
+    backend = "pybullet-surgical-stitched"
+    seed, placed = bs.sweep_run("3:4", backend)
+    assert bs.sweep_calibration("3:4", backend) is None
+    cal_seed, options = bs.sweep_run("3:4", backend, base_error_as="calibration")
+    calibration = bs.sweep_calibration("3:4", backend, base_error_as="calibration")
+    assert cal_seed == seed and "base_error" not in options
+    assert options["friction_scale"] == placed["friction_scale"]
+    assert calibration is not None
+    for robot, error in placed["base_error"].items():
+        np.testing.assert_array_equal(calibration[robot], -np.asarray(error))
+    with pytest.raises(bs.SweepRunError, match="--sweep-base-error-as"):
+        bs.sweep_run("3:4", backend, base_error_as="belief")
+
+
 def test_each_steps_true_peak_is_its_own() -> None:
     """The recorder keeps the largest true tension per step after the branch point, reset
     at every transition: a high first step does not show in the calm second one."""
