@@ -316,3 +316,24 @@ def test_a_declared_backend_may_depend_on_the_parameters(tmp_path: Path) -> None
         out = res.stdout + res.stderr
         assert res.returncode != 0 and f"{proc}:4" in out and code in out, out
         assert "Traceback" not in out
+
+
+def test_a_calibration_error_is_read_from_the_command_line_and_checked(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    steps = str(PROCS / "steps.yaml")
+    res = _suture("run", steps, "--backend", "ideal", "--out", str(out),
+                  "--calibration-error", "endobot_1=1,0,-0.5")  # fmt: skip
+    assert res.returncode == 0, res.stderr
+    from suture_engine.trace.reader import TraceReader
+
+    meta = TraceReader(out / "trace.mcap").meta
+    assert meta.get("extra", meta)["calibration_error"] == {"endobot_1": [1e-3, 0.0, -0.5e-3]}
+    bad = _suture("run", steps, "--backend", "ideal", "--calibration-error", "endobot_1=1,0",
+                  cwd=tmp_path)  # fmt: skip
+    assert bad.returncode == 2
+    assert "--calibration-error 'endobot_1=1,0': expected ROBOT=X,Y,Z in mm" in bad.stderr
+    unknown = _suture("run", steps, "--backend", "ideal", "--calibration-error", "arm=1,0,0",
+                      cwd=tmp_path)  # fmt: skip
+    assert unknown.returncode == 1
+    assert "calibration_error must be a robot of the scene" in unknown.stderr
+    assert not (tmp_path / "runs").exists()  # refused before any output is written
