@@ -545,10 +545,9 @@ def main(argv: Sequence[str]) -> int:
         if args.sweep_run is not None:
             if args.backend is None:
                 raise SweepRunError(args.sweep_run, "needs --backend (the sweep's)")
-            sweep = (args.sweep_run, args.backend, args.sweep_base_seed, args.sweep_only,
-                     args.sweep_base_error_as)  # fmt: skip
-            seed, options = sweep_run(*sweep)
-            calibration = sweep_calibration(*sweep)
+            job = _sweep_job(args.sweep_run, args.backend, args.sweep_base_seed,
+                             args.sweep_only, args.sweep_base_error_as)  # fmt: skip
+            seed, options, calibration = job.seed, dict(job.options), job.calibration
         results = run_branches(
             args.procedure, at=args.at, variants=variants, seed=seed, sets=args.sets,
             backend=args.backend, max_time_s=args.max_time, workers=max(1, args.workers),

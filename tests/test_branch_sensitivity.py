@@ -276,7 +276,9 @@ def test_a_branch_from_an_ablation_run_keeps_only_its_perturbations(tmp_path: Pa
             bs.sweep_run("3:1", "pybullet-surgical-stitched", only=bad)
 
 
-def test_a_branch_from_a_calibration_sweep_run_moves_the_belief_not_the_robot() -> None:
+def test_a_branch_from_a_calibration_sweep_run_moves_the_belief_not_the_robot(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
     """``--sweep-base-error-as calibration``: the backend builds the robots where declared,
     and the interpreter plans from bases off by minus that run's draw."""
     backend = "pybullet-surgical-stitched"
@@ -291,6 +293,10 @@ def test_a_branch_from_a_calibration_sweep_run_moves_the_belief_not_the_robot() 
         np.testing.assert_array_equal(calibration[robot], -np.asarray(error))
     with pytest.raises(bs.SweepRunError, match="--sweep-base-error-as"):
         bs.sweep_run("3:4", backend, base_error_as="belief")
+    argv = ["procedures/square-knot.yaml", "--at", "mirrored-knot.clear-jaws", "--sweep-run",
+            "3:4", "--backend", backend, "--sweep-base-error-as", "belief"]  # fmt: skip
+    assert bs.main(argv) == 2  # refused before any run
+    assert "--sweep-base-error-as: one of placement, calibration" in capsys.readouterr().err
 
 
 def test_each_steps_true_peak_is_its_own() -> None:

@@ -179,7 +179,17 @@ class _Sees(ScriptedSkill):
         _Sees.seen.append(dict(ctx.base_poses))
 
 
-def test_a_registration_moves_the_bases_every_later_step_sees() -> None:
+@pytest.mark.parametrize(
+    "calibration",
+    [None, (-1e-3, 2e-3, -0.5e-3)],
+    ids=["declared", "miscalibrated by minus the correction"],
+)
+def test_a_registration_moves_the_bases_every_later_step_sees(
+    calibration: tuple[float, float, float] | None,
+) -> None:
+    """Each step sees the declared base plus a calibration error (the belief before any
+    registration), then plus the registration's correction; a correction equal to minus
+    the error leaves exactly the declared base."""
     _Sees.seen = []
     policy = FailurePolicy(0, Then.FAIL)
     plan = Plan(
@@ -193,12 +203,19 @@ def test_a_registration_moves_the_bases_every_later_step_sees() -> None:
         {"end": Outcome.SUCCEEDED},
     )
     be = IdealBackend()
-    it = Interpreter(plan, be, be.reset(), scene=SCENE)
+    errors = None if calibration is None else {"endobot_1": calibration}
+    it = Interpreter(plan, be, be.reset(), scene=SCENE, calibration_error=errors)
     assert it.run("p", "ideal").outcome == "succeeded"
     before, after = _Sees.seen
+    declared = BASES["endobot_1"][0]
+    believed = np.subtract(before["endobot_1"][0], declared)
+    np.testing.assert_allclose(believed, calibration or (0.0, 0.0, 0.0), atol=1e-15)
     moved = np.subtract(after["endobot_1"][0], before["endobot_1"][0])
     np.testing.assert_allclose(moved, (1e-3, -2e-3, 0.5e-3), atol=1e-15)
+    if calibration is not None:  # the correction took the error out
+        np.testing.assert_allclose(after["endobot_1"][0], declared, atol=1e-15)
     assert after["endobot_2"] == before["endobot_2"]
+    assert after["endobot_2"][0] == BASES["endobot_2"][0]
     assert after["endobot_1"][1] == before["endobot_1"][1]  # the rotation is kept
 
 

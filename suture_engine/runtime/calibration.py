@@ -16,6 +16,7 @@ placement error leaves the instruments coming in at their moved ports.
 from __future__ import annotations
 
 import math
+import numbers
 from collections.abc import Mapping, Sequence
 from typing import Any
 
@@ -86,9 +87,12 @@ def calibration_offsets(
             raise InvalidValue(
                 "calibration_error", name, f"a robot of the scene ({', '.join(robots) or 'none'})"
             )
-        values = tuple(vector) if isinstance(vector, Sequence) else ()
+        try:  # a list, a tuple or an array; not a string, not a single number
+            values = () if isinstance(vector, (str, bytes)) else tuple(vector)
+        except TypeError:
+            values = ()
         if len(values) != 3 or not all(
-            isinstance(v, (int, float)) and math.isfinite(v) for v in values
+            isinstance(v, numbers.Real) and math.isfinite(v) for v in values
         ):
             raise InvalidValue(f"calibration_error.{name}", vector, "three finite numbers [m]")
         out[str(name)] = (float(values[0]), float(values[1]), float(values[2]))
