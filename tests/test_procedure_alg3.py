@@ -100,6 +100,7 @@ def test_states_follow_the_thesis_steps() -> None:
         "point-down",
         "carry-tail",  # second throw only, not mirrored: the jaws still hold the tail
         "grab-tail",  # first throw, and the mirrored second throw
+        "lift-end",  # with lift_end: two turns, and the mirrored throw with align_mirror
         "align-arm",  # two turns, and the mirrored second throw with align_mirror
         "align-jaws",  # two turns, and the mirrored second throw with align_mirror
         "draw-tail",
@@ -1092,3 +1093,30 @@ def test_the_square_knot_passes_the_lay_pull_to_its_mirrored_throw() -> None:
         first: Any = plan.steps["simple-knot.tighten"].make_skill().params
         assert mirrored.target == pytest.approx(target), sets
         assert first.target == pytest.approx((0.025, 0.0, 0.004)), sets
+
+
+@pytest.mark.parametrize(
+    ("procedure", "params", "step"),
+    [
+        ("square-knot.yaml", {"algorithm": 3}, "mirrored-knot.align-jaws"),
+        ("knot-algorithm-3.yaml", {"stitch": False, "turns": 2}, "align-jaws"),
+    ],
+)
+def test_align_jaws_off_its_goal_goes_on_to_the_draw(
+    procedure: str, params: dict[str, Any], step: str
+) -> None:
+    """``align-jaws`` only brings the jaws back over the tail's line; ended off its goal
+    (registered draw 19 of the calibration sweep: 2.58 mm, with the end already through the
+    loop) the throw goes on to ``draw-tail``, which is relative to where the grasper stands,
+    and the throw's later checks judge the knot. It is not retried (a retry would move the
+    arm with the loop on it again)."""
+    from suture_engine.runtime.plan import compile_procedure
+
+    proc: Any = load_procedure(ROOT / "procedures" / procedure, params=params)
+    steps = compile_procedure(proc).steps
+    prefix = step.rsplit("align-jaws", 1)[0]
+    align = steps[step]
+    assert align.enabled
+    assert align.on_done == align.policy.goto == f"{prefix}draw-tail"
+    assert align.policy.retry == 0
+    assert steps[f"{prefix}draw-tail"].make_skill().params.relative_to == "grasper"
