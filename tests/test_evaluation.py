@@ -326,3 +326,29 @@ def test_evaluate_trace_reads_the_cut_threads(tmp_path: Path) -> None:
         w.write(channels.GROUND_TRUTH_SUTURE_CUT, 1000, {"centerline": first.tolist()})
     ev = evaluate_trace(only, SURFACE, NORMAL, contact_diameter=0.5 * MM)
     assert isinstance(ev.knot, dict) and ev.knot["type"] == "square"
+
+
+def test_a_thread_sagging_into_the_wounds_opening_is_no_bite() -> None:
+    """A simulated thread resting across the pad's 1 mm slit sags into it. Measured on a
+    registered run of algorithm 3 (a square knot, its lift of the held end on): after the
+    knot one centerline point lay 0.09 mm under the plane over the wound line, its plane
+    crossings 0.06 and 0.04 mm either side of it. Counted as a second bite it cut the
+    square into two unknotted pieces. Lying in the wound is not a stitch: with the wound
+    given, the thread is one bite and its square knot is classified whole. A shallow bite
+    whose pierce points lie beside the opening still counts."""
+    one = _thread(SITES[:1])
+    x = one[-1][0]  # the thread goes on from its end, 10 mm past the stitch, over the wound
+    sag = np.array([[x, -0.6 * MM, 0.5 * MM], [x, 0.0, -0.09 * MM], [x, 0.6 * MM, 0.5 * MM],
+                    [x, 6 * MM, 2 * MM]])  # fmt: skip
+    pts = np.vstack([one, sag])
+    wound = ((-15 * MM, 0.0, 0.0), (15 * MM, 0.0, 0.0))
+    assert len(find_bites(pts, SURFACE, NORMAL)) == 2  # under the plane, twice
+    bites = find_bites(pts, SURFACE, NORMAL, wound=wound)
+    assert len(bites) == 1 and bites[0].entry[0] == pytest.approx(SITES[0][0])
+    entries = knot_entries(pts, SURFACE, NORMAL, 0.5 * MM, bites)
+    assert [e["type"] for e in entries] == ["square"]
+    assert len(find_bites(pts, SURFACE, NORMAL, wound=wound, in_wound=0.0)) == 2
+    # a shallow bite whose pierce points lie 1.5 mm either side of the line is a stitch
+    shallow = np.vstack([[[0.0, -20 * MM, 0.9 * MM]], _bite(0.0, 0.1 * MM, 1.5 * MM, n=5),
+                         [[0.0, 20 * MM, 0.9 * MM]]])  # fmt: skip
+    assert len(find_bites(shallow, SURFACE, NORMAL, wound=wound)) == 1

@@ -1120,3 +1120,82 @@ def test_align_jaws_off_its_goal_goes_on_to_the_draw(
     assert align.on_done == align.policy.goto == f"{prefix}draw-tail"
     assert align.policy.retry == 0
     assert steps[f"{prefix}draw-tail"].make_skill().params.relative_to == "grasper"
+
+
+@pytest.mark.parametrize(
+    ("params", "lifted"),
+    [
+        ({"second": True, "mirror": True, "stitch": False, "align_mirror": True}, True),
+        ({"stitch": False, "turns": 2}, True),
+        ({"second": True, "mirror": True, "stitch": False, "align_mirror": False}, False),
+        ({"stitch": False}, False),
+        ({"second": True, "stitch": False}, False),
+    ],
+)
+def test_lift_end_lifts_the_held_end_before_the_turn_and_align_jaws_lowers_it(
+    params: dict[str, Any], lifted: bool
+) -> None:
+    """``lift_end``: where the arm is turned with the end held (two turns, and the aligned
+    mirrored throw), the grasper first lifts straight up by ``lift_height`` (world frame,
+    from its own tool tip) and ``align-jaws`` comes down by as much, so the jaws end where
+    they did without it. Every other throw, and every throw without it, is unchanged."""
+    from suture_engine.runtime.plan import compile_procedure
+
+    without: Any = load_procedure(PROC, params=params)
+    lift: Any = load_procedure(PROC, params={**params, "lift_end": True, "lift_height": "6 mm"})
+    plan, plain = compile_procedure(lift), compile_procedure(without)
+    assert not plain.steps["lift-end"].enabled
+    assert plan.steps["lift-end"].enabled is lifted
+    assert plan.steps["grab-tail"].on_done == "lift-end"
+    assert plan.steps["lift-end"].on_done == plan.steps["lift-end"].policy.goto == "align-arm"
+    if not lifted:
+        return
+    up = plan.steps["lift-end"].make_skill().params
+    assert up.relative_to == "grasper" and up.robot == "grasper"
+    assert np.allclose(up.target, [0.0, 0.0, 6e-3]) and np.allclose(up.offset, 0.0)
+    down = np.asarray(plan.steps["align-jaws"].make_skill().params.target)
+    plain_down = np.asarray(plain.steps["align-jaws"].make_skill().params.target)
+    assert np.allclose(np.asarray(up.target) + down, plain_down)
+
+
+def test_the_square_knot_passes_lift_end_to_its_mirrored_throw() -> None:
+    from suture_engine.runtime.run import load_plan
+
+    for sets, lifted in [(["algorithm=3", "lift_end=true"], True), (["algorithm=3"], False)]:
+        _, plan = load_plan(PROC.parent / "square-knot.yaml", sets)
+        assert plan.steps["mirrored-knot.lift-end"].enabled is lifted, sets
+        assert not plan.steps["simple-knot.lift-end"].enabled, sets
+
+
+def _align_arm_lift_N(trace: Any) -> float:
+    """How far the grasper's base sensor's vertical force rises above its reading at the
+    start of the mirrored ``align-arm`` while it runs [N] (the sensor reads minus the
+    robot's weight, so a push up on the tool raises it)."""
+    window: list[float] = []
+    state = ""
+    for m in trace.messages(["/transitions", "/base_wrench/endobot_2"]):
+        if m.topic == "/transitions":
+            state = str(m.data["dest"]).rsplit("/", 1)[-1]
+        elif state == "mirrored-knot.align-arm":
+            window.append(float(m.data["force"][2]))
+    assert window, "the run never turned the mirrored arm"
+    return max(window) - window[0]
+
+
+@pytest.mark.slow
+def test_lift_end_keeps_the_turn_from_pressing_the_held_end_into_the_pad(tmp_path: Path) -> None:
+    """Algorithm 3's square knot, seed 1, run to just after the mirrored arm's turn. As
+    committed, the turn swings the held end's capsule down onto the pad and drags it there:
+    the grasper's base sensor reads the pad's push up (PyBullet's contact force on the
+    capsule was 4.8 N on this seed) while the thread is slack. With ``lift_end`` the end is
+    lifted clear first, and the push falls to a fraction of that."""
+    square_knot = str(ROOT / "procedures" / "square-knot.yaml")
+    runs = {}
+    for lift, max_time in (("false", "142"), ("true", "146")):
+        (tmp_path / lift).mkdir()
+        runs[lift] = run_cli(
+            tmp_path / lift, square_knot, "--set", "algorithm=3", "--set", f"lift_end={lift}",
+            "--seed", "1", "--max-time", max_time,
+        )  # fmt: skip
+    assert _align_arm_lift_N(runs["false"][1]) > 3.0
+    assert _align_arm_lift_N(runs["true"][1]) < 2.0
