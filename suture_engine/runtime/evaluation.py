@@ -113,7 +113,7 @@ def _crosses_wound(
     wound: tuple[ArrayLike, ArrayLike],
     normal: FloatArray,
     margin: float,
-    in_wound: float = 0.0,
+    in_wound: float,
 ) -> bool:
     """Whether the bite's entry and exit lie on either side of the wound line, beside it,
     and not both within ``in_wound`` [m] of it (the thread lying in the wound's opening)."""
