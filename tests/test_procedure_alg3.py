@@ -1155,6 +1155,11 @@ def test_lift_end_lifts_the_held_end_before_the_turn_and_align_jaws_lowers_it(
     down = np.asarray(plan.steps["align-jaws"].make_skill().params.target)
     plain_down = np.asarray(plain.steps["align-jaws"].make_skill().params.target)
     assert np.allclose(np.asarray(up.target) + down, plain_down)
+    kept: Any = load_procedure(
+        PROC, params={**params, "lift_end": True, "lift_height": "6 mm", "lower_end": False}
+    )
+    kept_down = compile_procedure(kept).steps["align-jaws"].make_skill().params.target
+    assert np.allclose(kept_down, plain_down)  # ``lower_end: false``: the end stays up
 
 
 def test_the_square_knot_passes_lift_end_to_its_mirrored_throw() -> None:
@@ -1164,6 +1169,13 @@ def test_the_square_knot_passes_lift_end_to_its_mirrored_throw() -> None:
         _, plan = load_plan(PROC.parent / "square-knot.yaml", sets)
         assert plan.steps["mirrored-knot.lift-end"].enabled is lifted, sets
         assert not plan.steps["simple-knot.lift-end"].enabled, sets
+    for sets, lowered in [
+        (["algorithm=3", "lift_end=true"], True),
+        (["algorithm=3", "lift_end=true", "lower_end=false"], False),
+    ]:
+        _, plan = load_plan(PROC.parent / "square-knot.yaml", sets)
+        down = plan.steps["mirrored-knot.align-jaws"].make_skill().params.target
+        assert np.isclose(down[2], -4e-3 if lowered else 0.0), sets
 
 
 def _align_arm_lift_N(trace: Any) -> float:
