@@ -352,3 +352,40 @@ def test_a_thread_sagging_into_the_wounds_opening_is_no_bite() -> None:
     shallow = np.vstack([[[0.0, -20 * MM, 0.9 * MM]], _bite(0.0, 0.1 * MM, 1.5 * MM, n=5),
                          [[0.0, 20 * MM, 0.9 * MM]]])  # fmt: skip
     assert len(find_bites(shallow, SURFACE, NORMAL, wound=wound)) == 1
+
+
+@pytest.mark.parametrize(
+    "passage",
+    [
+        # a square drawn down into the slit (friction draw 36 of algorithm 3's square knot
+        # with the held end kept up): in 3.32 mm out, 2.66 mm deep, out 0.34 mm past the line
+        [
+            [0.0, 6.0, 2.0],
+            [0.0, 3.37, 0.047],
+            [0.04, 0.82, -2.34],
+            [3.2, -0.45, -2.66],
+            [3.3, -0.5, 1.5],
+        ],
+        # a tail sagging in from 2.59 mm out to 0.17 mm past the line (a single throw of a
+        # calibration sweep), and the mirror of it
+        [[0.0, -6.0, 1.0], [0.0, -2.0, -0.11], [0.0, 0.5, 0.02], [0.0, 4.0, 1.0]],
+        [[2.0, 6.0, 1.0], [2.0, 2.0, -0.11], [2.0, -0.5, 0.02], [2.0, -4.0, 1.0]],
+    ],
+)
+def test_a_thread_going_into_the_wounds_opening_from_one_side_is_no_bite(
+    passage: list[list[float]],
+) -> None:
+    """The thread can pass under the plane through the wound's opening with only one of its
+    crossings beside the line: a knot drawn down into the slit, or a tail that sags in from
+    one side. Counted as a bite, each cut the thread's knot into unknotted pieces (two runs
+    ended with a square and a trefoil evaluated as unknots). A passage that meets the plane
+    within ``IN_WOUND`` of the line on either side is not a bite."""
+    one = _thread(SITES[:1])
+    x = one[-1][0]
+    pts = np.vstack([one, np.array(passage) * MM + [x, 0.0, 0.0]])
+    wound = ((-15 * MM, 0.0, 0.0), (15 * MM, 0.0, 0.0))
+    assert len(find_bites(pts, SURFACE, NORMAL, wound=wound, in_wound=0.0)) == 2
+    bites = find_bites(pts, SURFACE, NORMAL, wound=wound)
+    assert len(bites) == 1 and bites[0].entry[0] == pytest.approx(SITES[0][0])
+    entries = knot_entries(pts, SURFACE, NORMAL, 0.5 * MM, bites)
+    assert [e["type"] for e in entries] == ["square"]

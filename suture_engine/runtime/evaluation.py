@@ -9,8 +9,8 @@ to skills.
   passes through it. A bite is a maximal run of centerline points more than
   ``min_depth`` under the tissue plane (through ``tissue_point``, normal
   ``tissue_normal``) that crosses the wound line when one is given (a thread
-  hanging below the plane beyond the tissue is not a bite, nor is one lying in the
-  wound's opening: both pierce points within ``IN_WOUND`` of the line); its pierce
+  hanging below the plane beyond the tissue is not a bite, nor is one going into the
+  wound's opening: a pierce point within ``IN_WOUND`` of the line); its pierce
   points are where the centerline crosses the plane just before and after
   the run (linear interpolation), and its depth
   is the run's largest distance under the plane. Along the centerline (tail
@@ -69,12 +69,17 @@ a point under the plane and over the wound is in the tissue; a stitched start's 
 
 
 IN_WOUND = 1e-3
-"""Distance from the wound line [m] within which a passage's two plane crossings show the
-thread lying in the wound's opening, not a bite. A simulated thread resting across the
-PyBullet pad's 1 mm slit sags into it: on a registered run of algorithm 3 one centerline
-point lay 0.09 mm under the plane there, its crossings 0.06 and 0.04 mm from the line, and
-was counted as a second bite, which cut the square knot into two unknotted pieces. The
-bundled scenes' bites enter and leave 2.5-4 mm from the line (their points 4 mm out)."""
+"""Distance from the wound line [m] within which a passage's plane crossing shows the
+thread going into (or out of) the plane through the wound's opening, not through tissue:
+such a passage is not a bite. A simulated thread resting across the PyBullet pad's 1 mm
+slit sags into it, and a knot drawn down onto the wound is pressed into it. Each was
+counted as a second bite, which cut the knot into unknotted pieces: a registered run of
+algorithm 3 with one point 0.09 mm under the plane, its crossings 0.06 and 0.04 mm from
+the line (a square); a single throw whose tail sagged in from 2.59 mm out to 0.17 mm past
+the line (a trefoil); a square drawn 2.66 mm down into the slit, in 3.32 mm out and out
+0.34 mm past the line. The bites' own crossings on the stored runs lay 2.0-4.3 mm from the
+line (the bundled scenes' points are 4 mm out; the thread's coarse centerline puts the
+crossings up to 2 mm nearer)."""
 
 
 class Bite(NamedTuple):
@@ -116,7 +121,8 @@ def _crosses_wound(
     in_wound: float,
 ) -> bool:
     """Whether the bite's entry and exit lie on either side of the wound line, beside it,
-    and not both within ``in_wound`` [m] of it (the thread lying in the wound's opening)."""
+    and neither within ``in_wound`` [m] of it (the thread going into or out of the plane
+    through the wound's opening, not through tissue)."""
     a, b = np.asarray(wound[0], dtype=float), np.asarray(wound[1], dtype=float)
     along = b - a
     length = float(np.linalg.norm(along))
@@ -128,7 +134,7 @@ def _crosses_wound(
     de, dx = float(e @ side), float(x @ side)
     if de * dx > 0.0:
         return False
-    if abs(de) <= in_wound and abs(dx) <= in_wound:
+    if min(abs(de), abs(dx)) <= in_wound:
         return False
     s = de / (de - dx) if de != dx else 0.5
     where = float((e + s * (x - e)) @ along)
@@ -156,9 +162,9 @@ def find_bites(
             plus ``wound_margin``); a thread hanging below the surface plane beyond the
             tissue is not a bite.
         wound_margin: how far beyond the wound's ends a crossing still counts [m].
-        in_wound: with ``wound``: a passage whose entry and exit both lie within this of
-            the wound line [m] is the thread lying in the wound's opening, not a bite
-            (:data:`IN_WOUND`).
+        in_wound: with ``wound``: a passage whose entry or exit lies within this of the
+            wound line [m] goes through the wound's opening, not through tissue: not a
+            bite (:data:`IN_WOUND`).
 
     Returns:
         The complete bites (a run reaching an end of the centerline has no exit and
