@@ -347,7 +347,7 @@ def test_a_thread_sagging_into_the_wounds_opening_is_no_bite() -> None:
     assert len(bites) == 1 and bites[0].entry[0] == pytest.approx(SITES[0][0])
     entries = knot_entries(pts, SURFACE, NORMAL, 0.5 * MM, bites)
     assert [e["type"] for e in entries] == ["square"]
-    assert len(find_bites(pts, SURFACE, NORMAL, wound=wound, in_wound=0.0)) == 2
+    assert len(find_bites(pts, SURFACE, NORMAL, wound=wound, in_wound=0.0, opening=0.0)) == 2
     # a shallow bite whose pierce points lie 1.5 mm either side of the line is a stitch
     shallow = np.vstack([[[0.0, -20 * MM, 0.9 * MM]], _bite(0.0, 0.1 * MM, 1.5 * MM, n=5),
                          [[0.0, 20 * MM, 0.9 * MM]]])  # fmt: skip
@@ -379,13 +379,28 @@ def test_a_thread_going_into_the_wounds_opening_from_one_side_is_no_bite(
     crossings beside the line: a knot drawn down into the slit, or a tail that sags in from
     one side. Counted as a bite, each cut the thread's knot into unknotted pieces (two runs
     ended with a square and a trefoil evaluated as unknots). A passage that meets the plane
-    within ``IN_WOUND`` of the line on either side is not a bite."""
+    within ``IN_OPENING`` of the line on either side is not a bite."""
     one = _thread(SITES[:1])
     x = one[-1][0]
     pts = np.vstack([one, np.array(passage) * MM + [x, 0.0, 0.0]])
     wound = ((-15 * MM, 0.0, 0.0), (15 * MM, 0.0, 0.0))
-    assert len(find_bites(pts, SURFACE, NORMAL, wound=wound, in_wound=0.0)) == 2
+    assert len(find_bites(pts, SURFACE, NORMAL, wound=wound, opening=0.0)) == 2
     bites = find_bites(pts, SURFACE, NORMAL, wound=wound)
     assert len(bites) == 1 and bites[0].entry[0] == pytest.approx(SITES[0][0])
     entries = knot_entries(pts, SURFACE, NORMAL, 0.5 * MM, bites)
     assert [e["type"] for e in entries] == ["square"]
+
+
+def test_a_bite_whose_interpolated_pierce_point_lies_near_the_wound_is_still_a_bite() -> None:
+    """The PyBullet thread's centerline has one point per 3.5 mm capsule, so a bite's
+    interpolated pierce point can lie much nearer the wound line than where the thread
+    goes in: a stored run's stitch, declared 4 mm out, crossed the plane 0.84 mm and
+    2.43 mm either side of it. It is a bite."""
+    pts = np.array([[0.0, -6.0, 1.0], [0.0, -1.6, 0.3], [0.0, -0.26, -0.23], [0.0, 4.77, 0.2],
+                    [0.0, 8.0, 2.0]]) * MM  # fmt: skip
+    wound = ((-15 * MM, 0.0, 0.0), (15 * MM, 0.0, 0.0))
+    bites = find_bites(pts, SURFACE, NORMAL, wound=wound)
+    assert len(bites) == 1
+    assert bites[0].entry[1] == pytest.approx(-0.84 * MM, abs=0.01 * MM)
+    assert bites[0].exit[1] == pytest.approx(2.43 * MM, abs=0.02 * MM)
+    assert not find_bites(pts, SURFACE, NORMAL, wound=wound, opening=1e-3)

@@ -9,8 +9,9 @@ to skills.
   passes through it. A bite is a maximal run of centerline points more than
   ``min_depth`` under the tissue plane (through ``tissue_point``, normal
   ``tissue_normal``) that crosses the wound line when one is given (a thread
-  hanging below the plane beyond the tissue is not a bite, nor is one going into the
-  wound's opening: a pierce point within ``IN_WOUND`` of the line); its pierce
+  hanging below the plane beyond the tissue is not a bite, nor is one lying in the
+  wound's opening, both pierce points within ``IN_WOUND`` of the line, nor one going into
+  it, a pierce point within ``IN_OPENING``); its pierce
   points are where the centerline crosses the plane just before and after
   the run (linear interpolation), and its depth
   is the run's largest distance under the plane. Along the centerline (tail
@@ -48,6 +49,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
+    "IN_OPENING",
     "IN_WOUND",
     "Bite",
     "TraceEvaluation",
@@ -69,17 +71,23 @@ a point under the plane and over the wound is in the tissue; a stitched start's 
 
 
 IN_WOUND = 1e-3
-"""Distance from the wound line [m] within which a passage's plane crossing shows the
-thread going into (or out of) the plane through the wound's opening, not through tissue:
-such a passage is not a bite. A simulated thread resting across the PyBullet pad's 1 mm
-slit sags into it, and a knot drawn down onto the wound is pressed into it. Each was
-counted as a second bite, which cut the knot into unknotted pieces: a registered run of
-algorithm 3 with one point 0.09 mm under the plane, its crossings 0.06 and 0.04 mm from
-the line (a square); a single throw whose tail sagged in from 2.59 mm out to 0.17 mm past
-the line (a trefoil); a square drawn 2.66 mm down into the slit, in 3.32 mm out and out
-0.34 mm past the line. The bites' own crossings on the stored runs lay 2.0-4.3 mm from the
-line (the bundled scenes' points are 4 mm out; the thread's coarse centerline puts the
-crossings up to 2 mm nearer)."""
+"""Distance from the wound line [m] within which a passage's two plane crossings show the
+thread lying in the wound's opening, not a bite. A simulated thread resting across the
+PyBullet pad's 1 mm slit sags into it: on a registered run of algorithm 3 one centerline
+point lay 0.09 mm under the plane there, its crossings 0.06 and 0.04 mm from the line, and
+was counted as a second bite, which cut the square knot into two unknotted pieces."""
+
+IN_OPENING = 0.5e-3
+"""Distance from the wound line [m] within which one plane crossing shows the thread going
+into the plane through the wound's opening (half the PyBullet pad's 1 mm slit), not
+through tissue: a passage with such a crossing is not a bite. A single throw's tail sagged
+in from 2.59 mm out to 0.17 mm past the line, and a square drawn 2.66 mm down into the
+slit went in 3.32 mm out and came out 0.34 mm past it; each was counted as a second bite
+and cut its knot into unknotted pieces. The bites' own crossings lie further out but not
+far: on 152 bites of stored runs of algorithm 3, 0.84-4.3 mm from the line (the bundled
+scenes' points are 4 mm out; the thread's centerline, one point per 3.5 mm capsule, puts
+an interpolated crossing up to 3 mm nearer). The margin is thin on both sides: a finer
+centerline would widen it."""
 
 
 class Bite(NamedTuple):
@@ -119,10 +127,12 @@ def _crosses_wound(
     normal: FloatArray,
     margin: float,
     in_wound: float,
+    opening: float,
 ) -> bool:
     """Whether the bite's entry and exit lie on either side of the wound line, beside it,
-    and neither within ``in_wound`` [m] of it (the thread going into or out of the plane
-    through the wound's opening, not through tissue)."""
+    not both within ``in_wound`` [m] of it (the thread lying in the wound's opening), and
+    neither within ``opening`` [m] of it (the thread going into or out of the plane through
+    the opening, not through tissue)."""
     a, b = np.asarray(wound[0], dtype=float), np.asarray(wound[1], dtype=float)
     along = b - a
     length = float(np.linalg.norm(along))
@@ -134,7 +144,9 @@ def _crosses_wound(
     de, dx = float(e @ side), float(x @ side)
     if de * dx > 0.0:
         return False
-    if min(abs(de), abs(dx)) <= in_wound:
+    if abs(de) <= in_wound and abs(dx) <= in_wound:
+        return False
+    if min(abs(de), abs(dx)) <= opening:
         return False
     s = de / (de - dx) if de != dx else 0.5
     where = float((e + s * (x - e)) @ along)
@@ -149,6 +161,7 @@ def find_bites(
     wound: tuple[ArrayLike, ArrayLike] | None = None,
     wound_margin: float = 5e-3,
     in_wound: float = IN_WOUND,
+    opening: float = IN_OPENING,
 ) -> list[Bite]:
     """The thread's passages through the tissue, in order along the centerline.
 
@@ -162,9 +175,12 @@ def find_bites(
             plus ``wound_margin``); a thread hanging below the surface plane beyond the
             tissue is not a bite.
         wound_margin: how far beyond the wound's ends a crossing still counts [m].
-        in_wound: with ``wound``: a passage whose entry or exit lies within this of the
-            wound line [m] goes through the wound's opening, not through tissue: not a
-            bite (:data:`IN_WOUND`).
+        in_wound: with ``wound``: a passage whose entry and exit both lie within this of
+            the wound line [m] is the thread lying in the wound's opening, not a bite
+            (:data:`IN_WOUND`).
+        opening: with ``wound``: a passage whose entry or exit lies within this of the
+            wound line [m] goes into the plane through the wound's opening, not through
+            tissue: not a bite (:data:`IN_OPENING`).
 
     Returns:
         The complete bites (a run reaching an end of the centerline has no exit and
@@ -202,7 +218,7 @@ def find_bites(
         entry = _crossing(pts[i - 1], pts[i], float(h[i - 1]), float(h[i]))
         exit_ = _crossing(pts[j], pts[j + 1], float(h[j]), float(h[j + 1]))
         bite = Bite(entry, exit_, float(-h[first : last + 1].min()), first, last)
-        if wound is None or _crosses_wound(bite, wound, n, wound_margin, in_wound):
+        if wound is None or _crosses_wound(bite, wound, n, wound_margin, in_wound, opening):
             bites.append(bite)
     return bites
 
