@@ -84,10 +84,10 @@ through tissue: a passage with such a crossing is not a bite. A single throw's t
 in from 2.59 mm out to 0.17 mm past the line, and a square drawn 2.66 mm down into the
 slit went in 3.32 mm out and came out 0.34 mm past it; each was counted as a second bite
 and cut its knot into unknotted pieces. The bites' own crossings lie further out but not
-far: on 152 bites of stored runs of algorithm 3, 0.84-4.3 mm from the line (the bundled
-scenes' points are 4 mm out; the thread's centerline, one point per 3.5 mm capsule, puts
-an interpolated crossing up to 3 mm nearer). The margin is thin on both sides: a finer
-centerline would widen it."""
+far: on 187 stored runs of algorithm 3, each bite's nearer crossing lay 0.84-4.0 mm from
+the line (the bundled scenes' points are 4 mm out; the thread's centerline, one point per
+3.5 mm capsule, puts an interpolated crossing up to 3 mm nearer). The margin is thin on
+both sides: a finer centerline would widen it."""
 
 
 class Bite(NamedTuple):
