@@ -294,6 +294,10 @@ class Row(NamedTuple):
     """How the knot lies (the summary's ``lay``: ``square`` when its post strand is
     straight, ``half-hitches`` when not, Fig. 7.4; '' when none): a square that lies as
     half hitches still counts as a square."""
+    peak_true_at: str = ""
+    """Where the true peak was reached (the summary's ``peak_true_tension_at``): the step
+    and the thread's joint, e.g. ``mirrored-knot.tighten at joint 16`` (the joint is a
+    point of the ground-truth centerline); '' when not known."""
 
 
 def make_jobs(
@@ -466,7 +470,17 @@ def run_one(job: Job) -> Row:
         float(s.max_tension_N), float(s.sim_time_s), time.perf_counter() - start, *common, "",
         fault, path_digest(Path(job.out_dir) / "trace.mcap"),
         float(s.metrics.get("peak_true_tension_N", math.nan)), knot_lay(s.knot),
+        peak_at_text(s.metrics.get("peak_true_tension_at")),
     )  # fmt: skip
+
+
+def peak_at_text(at: Any) -> str:
+    """The summary's ``peak_true_tension_at`` as ``step at joint N`` ('' when None)."""
+    if not isinstance(at, dict):
+        return ""
+    step = str(at.get("state") or "?").rsplit("/", 1)[-1]
+    joint = at.get("joint")
+    return step if joint is None else f"{step} at joint {joint}"
 
 
 def square_lays(rows: Sequence[Row]) -> dict[int, dict[str, int]]:
@@ -586,9 +600,9 @@ def read_csv(path: Path) -> list[Row]:
         return []
     with path.open(newline="", encoding="utf-8") as fh:
         table = list(csv.reader(fh))
-    # a table written before the last_fault, path, peak_true_tension_N or knot_lay column
-    # reads with them empty (NaN)
-    if not table or tuple(table[0]) not in (Row._fields[: len(Row._fields) - k] for k in range(5)):
+    # a table written before the last_fault, path, peak_true_tension_N, knot_lay or
+    # peak_true_at column reads with them empty (NaN)
+    if not table or tuple(table[0]) not in (Row._fields[: len(Row._fields) - k] for k in range(6)):
         raise ValueError(f"{path}: not a results table (header {table[:1]})")
     fields = tuple(table[0])
     rows = []
@@ -881,9 +895,10 @@ def main(argv: Sequence[str]) -> int:
     for alg, lays in square_lays(rows).items():
         print(f"algorithm {alg}, how the successes lie: {lays}")
     for alg, (peak, run, estimate) in true_peaks(rows).items():
+        at = next((r.peak_true_at for r in rows if (r.algorithm, r.run) == (alg, run)), "")
         print(
-            f"algorithm {alg}, true tension peak {peak:.2f} N (run {run}); "
-            f"the base estimates' peak {estimate:.2f} N"
+            f"algorithm {alg}, true tension peak {peak:.2f} N (run {run}"
+            f"{', ' + at if at else ''}); the base estimates' peak {estimate:.2f} N"
         )
     print(f"[{time.perf_counter() - t0:.0f} s wall; rows in {args.out / 'results.csv'}]")
     return 0

@@ -185,8 +185,40 @@ def test_tension_metrics_peak_and_final() -> None:
         "final_tension_N": 1.0,
         "peak_true_tension_N": 3.0,
         "final_true_tension_N": 0.9,
+        "peak_true_tension_at": None,
     }
     assert tension_metrics([], None)["peak_true_tension_N"] is None
+    at = {"t_s": 1.5, "state": "autonomous/tighten", "joint": 8}
+    assert tension_metrics([1.0], [3.0], at)["peak_true_tension_at"] == at
+
+
+def test_evaluate_trace_says_when_where_and_in_which_state_the_true_tension_peaked(
+    tmp_path: Path,
+) -> None:
+    from suture_engine.trace import channels
+    from suture_engine.trace.synthetic import synthetic_meta
+    from suture_engine.trace.writer import TraceWriter
+
+    path = tmp_path / "t.mcap"
+    # a hand-written series: the peak (4.0 N at joint 16) in state "b", 2.5 ms in; a
+    # message without a joint (an older trace) and a NaN on either side of it
+    series = [(0, 1.0, 3), (1, 2.0, 5), (2, 4.0, 16), (3, math.nan, 9), (4, 4.0, 2), (5, 3.0, None)]
+    with TraceWriter(path, synthetic_meta()) as w:
+        w.write(channels.TRANSITIONS, 0, {"source": "", "dest": "a", "trigger": "start"})
+        for k, value, joint in series:
+            t_ns = 500_000 + k * 1_000_000
+            if k == 2:
+                w.write(channels.TRANSITIONS, t_ns, {"source": "a", "dest": "b", "trigger": "done"})
+            msg: dict[str, object] = {"tension_N": value}
+            if joint is not None:
+                msg["joint"] = joint
+            w.write(channels.GROUND_TRUTH_TENSION, t_ns, msg)
+            w.write(channels.TENSION_ESTIMATED, t_ns, {"tension_N": 0.5, "robot": "r"})
+    ev = evaluate_trace(path, SURFACE, NORMAL)
+    assert ev.metrics["peak_true_tension_N"] == 4.0
+    # the first tick at the peak (a later equal value does not move it), its state and joint
+    assert ev.metrics["peak_true_tension_at"] == {"t_s": 0.0025, "state": "b", "joint": 16}
+    assert ev.metrics["final_true_tension_N"] == 3.0
 
 
 def test_evaluate_without_a_thread() -> None:

@@ -229,7 +229,7 @@ def test_a_table_written_before_the_last_fault_column_reads_with_it_empty(
     tmp_path: Path,
 ) -> None:
     path = tmp_path / "results.csv"
-    header = ",".join(ks.Row._fields[:-4])  # without last_fault (path, true peak, lay)
+    header = ",".join(ks.Row._fields[:-5])  # without last_fault and the later columns
     path.write_text(header + "\n2,3,1695199924,failed,unknot,False,1.59,85.35,137.5,1.0,1.0,0.0,\n")
     (row,) = ks.read_csv(path)
     assert (row.run, row.outcome, row.last_fault) == (3, "failed", "")
@@ -354,7 +354,7 @@ def test_a_table_written_before_the_path_column_reads_with_it_empty(tmp_path: Pa
     rows = [_row(2, True)._replace(last_fault="x: y", path="abc", peak_true_tension_N=0.5)]
     ks.write_csv(rows, path)
     lines = path.read_text().splitlines()
-    cut = [",".join(line.split(",")[:-3]) for line in lines]  # drop path (true peak, lay)
+    cut = [",".join(line.split(",")[:-4]) for line in lines]  # drop path (and the later)
     path.write_text("\n".join(cut) + "\n")
     (row,) = ks.read_csv(path)
     assert (row.last_fault, row.path) == ("x: y", "")
@@ -366,8 +366,8 @@ def test_a_table_written_before_the_true_peak_column_reads_it_as_nan(tmp_path: P
     ks.write_csv(
         [_row(2, True)._replace(last_fault="x: y", path="abc", peak_true_tension_N=0.5)], path
     )
-    lines = path.read_text().splitlines()  # drop the true peak (and the lay)
-    path.write_text("\n".join(",".join(line.split(",")[:-2]) for line in lines) + "\n")
+    lines = path.read_text().splitlines()  # drop the true peak (and the later columns)
+    path.write_text("\n".join(",".join(line.split(",")[:-3]) for line in lines) + "\n")
     (row,) = ks.read_csv(path)
     assert (row.last_fault, row.path) == ("x: y", "abc")
     assert math.isnan(row.peak_true_tension_N)
@@ -386,6 +386,21 @@ def test_the_true_peak_is_reported_apart_from_the_estimate(tmp_path: Path) -> No
     ks.write_csv(rows, path)
     back = ks.read_csv(path)
     assert ks.true_peaks(back) == {2: (5.23, 0, 6.38)}
+
+
+def test_where_the_true_peak_was_reached_is_read_from_the_summary(tmp_path: Path) -> None:
+    at = {"t_s": 188.5, "state": "autonomous/mirrored-knot.tighten", "joint": 16}
+    assert ks.peak_at_text(at) == "mirrored-knot.tighten at joint 16"
+    assert ks.peak_at_text({**at, "joint": None}) == "mirrored-knot.tighten"
+    assert ks.peak_at_text(None) == ""
+    rows = [_row(3, True)._replace(run=26, peak_true_at="mirrored-knot.tighten at joint 16")]
+    path = tmp_path / "results.csv"
+    ks.write_csv(rows, path)
+    assert [r.peak_true_at for r in ks.read_csv(path)] == ["mirrored-knot.tighten at joint 16"]
+    # a table written before the column reads with it empty
+    text = path.read_text().splitlines()
+    path.write_text("\n".join(line.rsplit(",", 1)[0] for line in text) + "\n")
+    assert [r.peak_true_at for r in ks.read_csv(path)] == [""]
 
 
 @pytest.mark.parametrize(
@@ -431,7 +446,7 @@ def test_the_knots_lay_is_read_from_the_summary_and_counted_over_the_successes(
                                                         "half-hitches", ""]  # fmt: skip
     # a table written before it reads with the lay empty
     text = path.read_text().splitlines()
-    cut = [",".join(line.split(",")[:-1]) for line in text]
+    cut = [",".join(line.split(",")[:-2]) for line in text]  # the lay and the peak's place
     path.write_text("\n".join(cut) + "\n")
     assert [r.knot_lay for r in ks.read_csv(path)] == [""] * 5
 

@@ -74,6 +74,8 @@ def _record(path: Path, fast: bool, wall_clock: bool = False) -> bytes:
         obs = _observation(k, rng)
         torques: dict[str, Any] = {r: rng.normal(size=4) for r in ROBOTS}
         truth: dict[str, Any] = {"tension_N": float(rng.uniform(0, 3))}
+        if k % 8 != 7:  # a backend that says where the tension acts, on most ticks
+            truth["tension_joint"] = int(rng.integers(1, 40))
         if k % 5 == 1:
             torques["endobot_2"] = np.array([1, 2, 3, 4])  # ints: written as floats
         if k % 7 == 2:
@@ -108,6 +110,10 @@ def test_fast_path_writes_the_generic_paths_bytes(tmp_path: Path) -> None:
     generic = _record(tmp_path / "generic.mcap", fast=False)
     assert fast == generic
     messages = list(TraceReader(tmp_path / "fast.mcap").messages())
+    true = [m.data for m in messages if m.topic == "/ground_truth/tension"]
+    # the joint where the true tension acts, when the backend gave it (ticks k % 8 != 7)
+    assert [("joint" in d) for d in true] == [k % 8 != 7 for k in range(60)]
+    assert all(1 <= d["joint"] < 40 for d in true if "joint" in d)
     topics = {m.topic for m in messages}
     assert {"/qp/endobot_2", "/operator", "/ground_truth/suture", "/transitions"} <= topics
     assert messages[-1].topic == "/qp/endobot_2"
@@ -126,15 +132,17 @@ def test_fast_path_is_taken_and_matches_json_on_a_tick(tmp_path: Path) -> None:
     obs = _observation(0, np.random.default_rng(3))
     torques = {r: np.array([0.25, -1e-9, 3e16, 5e-5]) for r in ROBOTS}
     batch: list[tuple[str, bytes]] = []
-    assert rec._tick_fast(batch, obs, torques, {r: "lock" for r in ROBOTS}, {"a": 1.0}, "a", 2.0)
+    modes = {r: "lock" for r in ROBOTS}
+    assert rec._tick_fast(batch, obs, torques, modes, {"a": 1.0}, "a", (2.0, 7))
     rec.close()
     by_topic = dict(batch)
+    assert json.loads(by_topic["/ground_truth/tension"]) == {"tension_N": 2.0, "joint": 7}
     cmd = json.loads(by_topic["/command/endobot_1"])
     assert cmd == {"kind": "torque", "mode": "lock", "values": [0.25, -1e-9, 3e16, 5e-5]}
     assert by_topic["/command/endobot_1"].endswith(b'"values":[0.25,-1e-09,3e+16,5e-05]}')
     wrench = json.loads(by_topic["/base_wrench/endobot_2"])
     assert wrench["force"] + wrench["torque"] == obs.robots["endobot_2"].base_wrench.tolist()
-    assert json.loads(by_topic["/ground_truth/tension"]) == {"tension_N": 2.0}
+    assert json.loads(by_topic["/ground_truth/tension"]) == {"tension_N": 2.0, "joint": 7}
 
 
 @pytest.mark.parametrize("fast", [True, False])

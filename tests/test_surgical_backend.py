@@ -118,6 +118,15 @@ def test_run_records_ground_truth_and_fills_the_knot(tmp_path: Path) -> None:
     assert knot is not None and knot["type"] == "unknot" and knot["crossings"] == 0
     topics = {m.topic for m in TraceReader(result.trace).messages()}
     assert {"/ground_truth/suture", "/ground_truth/tension"} <= topics
+    # where the true tension peaked: kept live by the run, and read back from its trace
+    at = summary["metrics"]["peak_true_tension_at"]
+    from suture_engine.runtime.evaluation import evaluate_trace
+
+    again = evaluate_trace(result.trace, (0.0, 0.0, 0.0), (0.0, 0.0, 1.0))
+    assert at == again.metrics["peak_true_tension_at"]
+    assert summary["metrics"]["peak_true_tension_N"] == again.metrics["peak_true_tension_N"]
+    states = {m.data["dest"] for m in TraceReader(result.trace).messages(["/transitions"])}
+    assert 1 <= at["joint"] <= 39 and at["state"] in states
     plain = run_procedure(PROCS / "steps.yaml", backend="pybullet", out=tmp_path / "p")
     assert plain.summary.knot is None
 
@@ -430,18 +439,23 @@ def test_ground_truth_is_read_on_look_up_and_matches_the_simulator() -> None:
             "endobot_2/tool_tip",
             "centerline",
             "tension_N",
+            "tension_joint",
             "contact_diameter",
         }
         assert truth["contact_diameter"] == pytest.approx(
             2 * be.scene.suture.params.collision_radius
         )
         assert np.allclose(truth["centerline"], be.scene.suture.centerline())
-        assert truth["tension_N"] == pytest.approx(float(be.scene.suture.tensions().max()))
+        tensions = be.scene.suture.tensions()
+        assert truth["tension_N"] == pytest.approx(float(tensions.max()))
+        # the joint it acts at, as a point of the centerline: capsules i and i + 1 meet at i + 1
+        assert truth["tension_joint"] == 1 + int(np.argmax(tensions))
         tip, _ = be.robots["endobot_1"].true_tool_pose()
         assert np.allclose(truth["endobot_1/tool_tip"], tip)
         assert set(truth._values) == {
             "centerline",
             "tension_N",
+            "tension_joint",
             "endobot_1/tool_tip",
             "contact_diameter",
         }  # endobot_2/tool_tip was never looked up: never read

@@ -205,6 +205,46 @@ def _winding(points: np.ndarray, axis_xy: np.ndarray) -> float:
     return float((ang[-1] - ang[0]) / (2 * np.pi))
 
 
+@pytest.mark.parametrize("pinned", ["tail", "needle end"])
+def test_a_hung_thread_is_most_taut_at_its_top_joint_and_carries_the_weight_below(
+    pinned: str,
+) -> None:
+    """Hung by one end capsule with its weight not cancelled (no ``pre_step``), each joint
+    carries the weight of the capsules below it (statics: k m g), so the largest tension
+    acts at the top joint; the joint named is the centerline's highest inner point."""
+    import pybullet as p
+
+    from backends.pybullet.suture import Suture, configure_physics, straight_path
+
+    n = 20
+    prm = SutureParams(length=0.07, n_segments=n, needle=False)
+    c = p.connect(p.DIRECT)
+    try:
+        configure_physics(c)
+        # laid hanging from the pinned end: the tail at the top, or the needle end
+        down = (0.0, 0.0, -1.0) if pinned == "tail" else (0.0, 0.0, 1.0)
+        start = (0.0, 0.0, 0.2) if pinned == "tail" else (0.0, 0.0, 0.13)
+        sut = Suture.create(c, straight_path(start, down, prm.length), prm)
+        top = sut.bodies[0] if pinned == "tail" else sut.bodies[-1]
+        pos, _ = p.getBasePositionAndOrientation(top, physicsClientId=c)
+        p.createConstraint(
+            top, -1, -1, -1, p.JOINT_POINT2POINT, [0, 0, 0], [0, 0, 0], pos, physicsClientId=c
+        )
+        for _ in range(1000):  # 1 s at 1 kHz
+            p.stepSimulation(physicsClientId=c)
+        tensions = sut.tensions()
+        peak, joint = sut.peak_tension()
+        line = sut.centerline()
+    finally:
+        p.disconnect(physicsClientId=c)
+    mg = prm.segment_mass * 9.81
+    below = np.arange(n - 1, 0, -1) if pinned == "tail" else np.arange(1, n)
+    np.testing.assert_allclose(tensions, below * mg, rtol=0.02)
+    assert peak == pytest.approx((n - 1) * mg, rel=0.02)
+    assert joint == (1 if pinned == "tail" else n - 1)
+    assert joint == 1 + int(np.argmax(line[1:-1, 2]))
+
+
 def test_thread_wraps_around_an_instrument_shaft() -> None:
     """A grasper carries the thread's end once around another grasper's shaft: the thread
     winds about one more turn around the shaft's axis (it collides, it does not pass)."""

@@ -95,10 +95,6 @@ def _towards(value: float, goal: float, step: float) -> float:
     return value + step if goal > value else value - step
 
 
-def _largest(values: Any) -> float:
-    return float(values.max()) if len(values) else 0.0
-
-
 class _LazyTruth(Mapping[str, Any]):
     """A read-only mapping whose values are computed on first look-up, then kept."""
 
@@ -763,7 +759,9 @@ class PyBulletBackend:
 
     def ground_truth(self) -> Mapping[str, Any]:
         """True tool-tip positions [m] and, with the surgical scene, the thread's
-        ``centerline`` [m], ``tension_N`` (its largest segment tension [N]) and
+        ``centerline`` [m], ``tension_N`` (its largest joint tension [N]),
+        ``tension_joint`` (where that acts: the joint's index among the centerline's
+        points, :meth:`~backends.pybullet.suture.Suture.peak_tension`) and
         ``contact_diameter`` [m]; once a thread is cut, ``cut_centerlines`` [m].
         Evaluation and traces only.
 
@@ -777,7 +775,9 @@ class PyBulletBackend:
             suture = self.scene.suture
             if suture is not None:
                 getters["centerline"] = suture.centerline
-                getters["tension_N"] = lambda: _largest(suture.tensions())
+                peak = functools.lru_cache(maxsize=1)(suture.peak_tension)
+                getters["tension_N"] = lambda: peak()[0]
+                getters["tension_joint"] = lambda: peak()[1]
             if self.cut_threads:
                 cut = tuple(c.centerline for c in self.cut_threads)
                 getters["cut_centerlines"] = lambda: cut

@@ -691,6 +691,21 @@ class Suture:
         axial: FloatArray = np.maximum(-row_dot(force, u), 0.0)
         return axial
 
+    def peak_tension(self) -> tuple[float, int]:
+        """The thread's largest joint tension and where it acts (ground truth).
+
+        Returns:
+            ``(tension, point)``: the largest of :meth:`tensions` [N] and the index of its
+            joint among the :meth:`centerline`'s points (``1`` to ``n_segments - 1``: the
+            joint between capsules ``point - 1`` and ``point``). ``(0.0, 0)`` for a
+            thread of one capsule.
+        """
+        tensions = self.tensions()
+        if not len(tensions):
+            return 0.0, 0
+        i = int(np.argmax(tensions))
+        return float(tensions[i]), i + 1
+
     def contacts(self) -> list[SutureContact]:
         """Every contact point of the thread in the last step (ground truth)."""
         import pybullet as p

@@ -300,13 +300,20 @@ def stitch_metrics(
 
 
 def tension_metrics(
-    estimated: Iterable[float], true: Iterable[float] | None = None
-) -> dict[str, float | None]:
+    estimated: Iterable[float],
+    true: Iterable[float] | None = None,
+    true_peak_at: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
     """Peak and final tension [N] of the estimate and, when simulated, of the thread.
 
     Args:
         estimated: the recorded estimated tension, in time order [N].
         true: the thread's true tension in time order [N] (None: no thread).
+        true_peak_at: where the true peak was reached, given as
+            ``peak_true_tension_at``: ``t_s`` [s] simulated, ``state`` (the automaton's
+            state then) and ``joint`` (the joint it acted at, an index among the
+            ground-truth centerline's points; None when the backend does not say).
+            None: not known.
     """
 
     def peak_final(values: Iterable[float] | None) -> tuple[float | None, float | None]:
@@ -326,6 +333,7 @@ def tension_metrics(
         "final_tension_N": fe,
         "peak_true_tension_N": pt,
         "final_true_tension_N": ft,
+        "peak_true_tension_at": None if true_peak_at is None else dict(true_peak_at),
     }
 
 
@@ -432,6 +440,7 @@ def evaluate(
     contact_diameter: float | None = None,
     wound: tuple[ArrayLike, ArrayLike] | None = None,
     cut: Sequence[ArrayLike] = (),
+    true_peak_at: Mapping[str, Any] | None = None,
 ) -> TraceEvaluation:
     """Knots and metrics from a final centerline and tension series (see the module).
 
@@ -452,8 +461,9 @@ def evaluate(
         wound: the wound line's ends [m]; bites must cross it (see :func:`find_bites`).
         cut: the centerlines of the threads cut before the last one [m], in the order
             they were cut.
+        true_peak_at: where the true tension peaked (see :func:`tension_metrics`).
     """
-    metrics: dict[str, Any] = dict(tension_metrics(estimated, true))
+    metrics: dict[str, Any] = dict(tension_metrics(estimated, true, true_peak_at))
     threads = [_points(c) for c in cut]
     if centerline is not None:
         threads.append(_points(centerline))
@@ -499,6 +509,11 @@ def _along_wound(bites: Sequence[Bite], wound: tuple[ArrayLike, ArrayLike] | Non
     return float(np.mean([(c - a) @ along for c in centres]))
 
 
+def _number(value: Any) -> float:
+    """A trace's number: a non-finite value is written as null; read back as NaN."""
+    return math.nan if value is None else float(value)
+
+
 def evaluate_trace(
     path: str | Path,
     tissue_point: ArrayLike,
@@ -527,12 +542,17 @@ def evaluate_trace(
 
     topics = [channels.GROUND_TRUTH_SUTURE, channels.GROUND_TRUTH_TENSION]
     topics += [channels.TENSION_ESTIMATED, channels.GROUND_TRUTH_SUTURE_CUT]
+    topics += [channels.TRANSITIONS]
     centerline: FloatArray | None = None
     cut: list[FloatArray] = []
     estimated: list[float] = []
     true: list[float] = []
+    state = ""
+    peak, peak_at = -math.inf, None
     for msg in TraceReader(path).messages(topics):
-        if msg.topic == channels.GROUND_TRUTH_SUTURE:
+        if msg.topic == channels.TRANSITIONS:
+            state = str(msg.data.get("dest", state))
+        elif msg.topic == channels.GROUND_TRUTH_SUTURE:
             centerline = _centerline(msg.data) if msg.data else centerline
         elif msg.topic == channels.GROUND_TRUTH_SUTURE_CUT:
             line = _centerline(msg.data) if msg.data else None
@@ -540,9 +560,18 @@ def evaluate_trace(
                 cut.append(line)
             centerline = None  # the thread after the cut is the next one
         elif msg.topic == channels.GROUND_TRUTH_TENSION:
-            true.append(float(msg.data["tension_N"]))
+            value = _number(msg.data["tension_N"])
+            if value > peak:  # false for NaN
+                peak = value
+                joint = msg.data.get("joint")
+                peak_at = {
+                    "t_s": msg.log_time_ns * 1e-9,
+                    "state": state,
+                    "joint": None if joint is None else int(joint),
+                }
+            true.append(value)
         else:
-            estimated.append(float(msg.data["tension_N"]))
+            estimated.append(_number(msg.data["tension_N"]))
     return evaluate(
         centerline,
         estimated,
@@ -553,4 +582,5 @@ def evaluate_trace(
         contact_diameter,
         wound,
         cut,
+        peak_at if true else None,
     )

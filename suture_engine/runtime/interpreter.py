@@ -208,6 +208,8 @@ class Interpreter:
         self._shared_skill: Any = None
         """The running skill when it is a shared-control one (``mode: shared``)."""
         self._true_tension = [-math.inf, math.nan]
+        # when, in which state and at which joint the true tension peaked
+        self._true_peak_at: dict[str, Any] | None = None
         """Peak and last true thread tension of the ground truth [N] (evaluation only)."""
         self.interrupted = False
         self.robot_modes: dict[str, Mode] = {}
@@ -600,6 +602,12 @@ class Interpreter:
             self._true_tension[1] = true_tension
             if not true_tension <= self._true_tension[0]:
                 self._true_tension[0] = true_tension
+                joint = truth.get("tension_joint")
+                self._true_peak_at = {
+                    "t_s": float(obs.t),
+                    "state": a.state,
+                    "joint": None if joint is None else int(joint),
+                }
         self.recorder.tick(time_ns, obs, torques, modes, tension, truth)
         if self.on_tick is not None:
             self.on_tick(self)
@@ -652,13 +660,23 @@ class Interpreter:
         try:
             cut = truth.get("cut_centerlines") or ()
             return evaluate(
-                centerline, estimated, true, point, normal, declared, diameter, wound, cut
+                centerline,
+                estimated,
+                true,
+                point,
+                normal,
+                declared,
+                diameter,
+                wound,
+                cut,
+                true_peak_at=self._true_peak_at if true is not None else None,
             )
         except (SutureError, ValueError) as exc:  # e.g. a degenerate centerline
             from suture_engine.runtime.evaluation import TraceEvaluation, tension_metrics
 
             knot = {"type": None, "error": str(exc)} if centerline is not None else None
-            return TraceEvaluation(knot, dict(tension_metrics(estimated, true)))
+            at = self._true_peak_at if true is not None else None
+            return TraceEvaluation(knot, dict(tension_metrics(estimated, true, at)))
 
     def _stuck(self) -> bool:
         """Locked and waiting, for 10 ticks, with no timed operator event left."""

@@ -202,11 +202,12 @@ class TraceRecorder(Recorder):
         self._queued = []
         robot_name = max(tension, key=lambda k: tension[k]) if tension else None
         true_tension = ground_truth.get("tension_N")
-        fast = self._fast and self._tick_fast(
-            batch, obs, torques, modes, tension, robot_name, true_tension
-        )
+        # where along the thread the true tension acts (a backend may not say)
+        joint = ground_truth.get("tension_joint") if true_tension is not None else None
+        true = None if true_tension is None else (true_tension, joint)
+        fast = self._fast and self._tick_fast(batch, obs, torques, modes, tension, robot_name, true)
         if not fast:
-            self._tick_generic(batch, obs, torques, modes, tension, robot_name, true_tension)
+            self._tick_generic(batch, obs, torques, modes, tension, robot_name, true)
         self.writer.write_encoded(time_ns, batch)
         for name, robot in obs.robots.items():
             bend = robot.tool.bend
@@ -233,7 +234,7 @@ class TraceRecorder(Recorder):
         modes: Mapping[str, str],
         tension: Mapping[str, float],
         robot_name: str | None,
-        true_tension: Any,
+        true: tuple[Any, Any] | None,
     ) -> bool:
         """The tick's messages from templates, every vector encoded in one call; False
         (nothing appended) when a vector is not a float64 NumPy vector, or the base
@@ -249,8 +250,8 @@ class TraceRecorder(Recorder):
                 vectors.append(tau)
         if robot_name is not None:
             vectors.append([float(v) for v in tension.values()])
-        if true_tension is not None:
-            vectors.append([float(true_tension)])
+        if true is not None:
+            vectors.append([float(true[0])])
         texts = self._encode_vectors(vectors)
         if texts is None:
             return False
@@ -280,8 +281,12 @@ class TraceRecorder(Recorder):
             )
             batch.append((self._ch.TENSION_ESTIMATED, text))
             k += 1
-        if true_tension is not None:
-            batch.append((self._ch.GROUND_TRUTH_TENSION, b'{"tension_N":%b}' % texts[k]))
+        if true is not None:
+            if true[1] is None:
+                text = b'{"tension_N":%b}' % texts[k]
+            else:
+                text = b'{"joint":%d,"tension_N":%b}' % (int(true[1]), texts[k])
+            batch.append((self._ch.GROUND_TRUTH_TENSION, text))
         return True
 
     def _tick_generic(
@@ -292,7 +297,7 @@ class TraceRecorder(Recorder):
         modes: Mapping[str, str],
         tension: Mapping[str, float],
         robot_name: str | None,
-        true_tension: Any,
+        true: tuple[Any, Any] | None,
     ) -> None:
         """The tick's messages as dicts through the generic encoder."""
         encode = self._encode
@@ -314,10 +319,11 @@ class TraceRecorder(Recorder):
                 "estimates": [{"robot": n, "tension_N": float(v)} for n, v in tension.items()],
             }
             batch.append((self._ch.TENSION_ESTIMATED, encode(msg2)))
-        if true_tension is not None:
-            batch.append(
-                (self._ch.GROUND_TRUTH_TENSION, encode({"tension_N": float(true_tension)}))
-            )
+        if true is not None:
+            msg3: dict[str, Any] = {"tension_N": float(true[0])}
+            if true[1] is not None:
+                msg3["joint"] = int(true[1])
+            batch.append((self._ch.GROUND_TRUTH_TENSION, encode(msg3)))
 
     def transition(self, time_ns: int, record: TransitionRecord) -> None:
         """Record one transition on ``/transitions`` and its event on ``/events``."""

@@ -34,7 +34,9 @@ class RunSummary:
         metrics: procedure metrics (the skills'), plus the run's evaluation
             (:mod:`suture_engine.runtime.evaluation`): ``peak_tension_N``,
             ``final_tension_N`` (estimate), ``peak_true_tension_N``,
-            ``final_true_tension_N`` (simulated thread) and ``stitches`` (entry/exit
+            ``final_true_tension_N`` (simulated thread), ``peak_true_tension_at`` (the
+            true peak's ``t_s``, ``state`` and ``joint``, a point of the ground-truth
+            centerline; None without a thread) and ``stitches`` (entry/exit
             position error, bite depth, spacing mean and SD; None without a thread),
             plus the backend's own (``run_metrics()``; the PyBullet surgical scene with
             graspers: ``grip_slips``, the times the thread slid through a grasper's

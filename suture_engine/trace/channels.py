@@ -29,7 +29,9 @@ Channels (``<robot>`` is a robot name such as ``left`` or ``right``):
                            (solve time [us] is wall-clock data: dropped by default)
 ``/ground_truth/suture``   simulator's suture centerline as x, y, z arrays [m], at a lower
                            rate (writers may give ``centerline: [[x, y, z], ...]``)
-``/ground_truth/tension``  simulator's true suture tension [N]
+``/ground_truth/tension``  simulator's true suture tension [N] (the thread's largest
+                           joint tension) and the joint it acts at (``joint``, a
+                           point of the centerline)
 ``/ground_truth/knot``     knot classification of the simulated suture
 ========================== ============================================================
 
@@ -429,11 +431,18 @@ CATALOGUE: tuple[ChannelSpec, ...] = (
             "True suture tension (ground truth)",
             {
                 "tension_N": {**_NUM, "description": "true tension [N]"},
+                "joint": {
+                    "type": "integer",
+                    "minimum": 0,
+                    "description": "where tension_N acts: its joint's index among the "
+                    "/ground_truth/suture centerline's points",
+                },
                 "robot": _OPT_STR,
             },
             ["tension_N"],
         ),
-        "The simulator's true suture tension [N]. Evaluation only.",
+        "The simulator's true suture tension [N], the thread's largest joint tension, and "
+        "the joint it acts at. Evaluation only.",
         ground_truth=True,
     ),
     ChannelSpec(
