@@ -337,3 +337,24 @@ def test_a_calibration_error_is_read_from_the_command_line_and_checked(tmp_path:
     assert unknown.returncode == 1
     assert "calibration_error must be a robot of the scene" in unknown.stderr
     assert not (tmp_path / "runs").exists()  # refused before any output is written
+
+
+def test_the_printed_summary_gives_the_true_peak_with_when_and_where(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from types import SimpleNamespace
+
+    from suture_engine.runtime.cli_run import _print_summary
+
+    at = {"t_s": 188.5, "state": "autonomous/mirrored-knot.tighten", "joint": 16}
+    summary = SimpleNamespace(
+        outcome="failed",
+        tension_limit_N=7.06,
+        metrics={"peak_true_tension_N": 14.62, "peak_true_tension_at": at},
+    )
+    _print_summary(summary, None)
+    out = " ".join(capsys.readouterr().out.split())
+    assert "true tension peak (ground truth) 14.620 N at 188.500 s in" in out
+    assert "mirrored-knot.tighten, thread joint 16 (over limit 7.06 N)" in out
+    _print_summary(SimpleNamespace(outcome="succeeded", metrics={}), None)
+    assert "true tension peak" not in capsys.readouterr().out  # no thread simulated

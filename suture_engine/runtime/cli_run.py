@@ -33,6 +33,27 @@ def _knot_text(entry: Any) -> str:
     return text
 
 
+def _true_peak_row(s: object) -> list[tuple[str, str]]:
+    """The thread's true tension peak, when and where (ground truth), against the limit."""
+    metrics = getattr(s, "metrics", None) or {}
+    peak = metrics.get("peak_true_tension_N")
+    if peak is None:
+        return []
+    text = f"{peak:.3f} N"
+    at = metrics.get("peak_true_tension_at") or {}
+    if at.get("t_s") is not None:
+        text += f" at {at['t_s']:.3f} s"
+    if at.get("state"):
+        text += f" in {str(at['state']).rsplit('/', 1)[-1]}"
+    if at.get("joint") is not None:
+        text += f", thread joint {at['joint']}"
+    limit = getattr(s, "tension_limit_N", None)
+    if limit is not None:
+        over = peak > limit
+        text += f" ({'[red]over[/] ' if over else ''}limit {limit:.2f} N)"
+    return [("true tension peak (ground truth)", text)]
+
+
 def _print_summary(summary: object, out_dir: Path | None) -> None:
     from rich.console import Console
     from rich.table import Table
@@ -50,6 +71,7 @@ def _print_summary(summary: object, out_dir: Path | None) -> None:
         ("wall time", f"{getattr(s, 'wall_time_s', 0.0):.3f} s"),
         ("real-time factor", f"{getattr(s, 'real_time_factor', 0.0):.2f}"),
         ("max tension", f"{getattr(s, 'max_tension_N', 0.0):.3f} N"),
+        *_true_peak_row(s),
         ("violations", str(len(getattr(s, "violations", [])))),
         ("retries", str(getattr(s, "retries", 0))),
         ("operator events", str(getattr(s, "operator_events", 0))),
