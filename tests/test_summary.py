@@ -76,6 +76,26 @@ def test_summary_has_one_knot_per_stitch_and_the_stitch_metrics(tmp_path: Path) 
     assert data["metrics"]["stitches"]["count"] == 3
 
 
+def test_the_true_peak_is_placed_in_time_state_and_joint_and_a_nan_does_not_reset_it() -> None:
+    from test_evaluation import SITES, _thread
+
+    class Placed(ThreadTruth):
+        def ground_truth(self) -> dict[str, Any]:
+            truth = super().ground_truth()
+            t = self.tick * self.dt
+            if 0.04 <= t < 0.045:
+                truth["tension_N"] = float("nan")  # a blown-up reading after the peak
+            truth["tension_joint"] = 7 if t < 0.03 else 12
+            return truth
+
+    be = Placed(_thread(SITES))
+    s = Interpreter(_plan(), be, be.reset()).run("p", "ideal")
+    assert s.metrics["peak_true_tension_N"] == pytest.approx(25.0 * 0.039)
+    at = s.metrics["peak_true_tension_at"]
+    assert at["t_s"] == pytest.approx(0.039) and at["joint"] == 12
+    assert at["state"].rsplit("/", 1)[-1] == "a"
+
+
 def test_summary_without_a_thread_has_no_knot_and_tension_figures() -> None:
     be = IdealBackend()
     it = Interpreter(_plan(), be, be.reset())
@@ -83,6 +103,7 @@ def test_summary_without_a_thread_has_no_knot_and_tension_figures() -> None:
     s = it.run("p", "ideal")
     assert s.knot is None and s.metrics["stitches"] is None
     assert s.metrics["peak_true_tension_N"] is None
+    assert s.metrics["peak_true_tension_at"] is None
     assert 0.4 < s.metrics["peak_tension_N"] <= 1.0  # the 20 ms push through the low-pass
     assert s.metrics["final_tension_N"] == pytest.approx(0.0, abs=0.05)  # it ended 30 ms ago
 

@@ -208,9 +208,10 @@ class Interpreter:
         self._shared_skill: Any = None
         """The running skill when it is a shared-control one (``mode: shared``)."""
         self._true_tension = [-math.inf, math.nan]
-        # when, in which state and at which joint the true tension peaked
-        self._true_peak_at: dict[str, Any] | None = None
         """Peak and last true thread tension of the ground truth [N] (evaluation only)."""
+        self._true_peak_at: dict[str, Any] | None = None
+        """When (``t_s``), in which state and at which ``joint`` of the thread the true
+        tension peaked (evaluation only)."""
         self.interrupted = False
         self.robot_modes: dict[str, Mode] = {}
         """Robots the operator holds alone (lock or manual) while the procedure goes on."""
@@ -600,7 +601,7 @@ class Interpreter:
         true_tension = truth.get("tension_N")
         if true_tension is not None:
             self._true_tension[1] = true_tension
-            if not true_tension <= self._true_tension[0]:
+            if true_tension > self._true_tension[0]:  # a NaN is never the peak
                 self._true_tension[0] = true_tension
                 joint = truth.get("tension_joint")
                 self._true_peak_at = {
