@@ -42,6 +42,7 @@ def test_csv_rows_are_labelled_with_each_runs_outcome_and_knot(tmp_path: Path) -
         rows[0]["a.displacement_y_mm"]
     ) ** 2 + float(rows[0]["a.displacement_z_mm"]) ** 2 == pytest.approx(900.0)
     assert float(rows[1]["true_peak_N (ground truth)"]) == pytest.approx(0.75)
+    assert rows[1]["true_peak_joint (ground truth)"] == "12"
 
 
 def test_text_and_json(tmp_path: Path) -> None:
@@ -50,7 +51,7 @@ def test_text_and_json(tmp_path: Path) -> None:
     assert result.exit_code == 0, result.output
     assert "outcome succeeded, knot square" in result.output
     line = next(x for x in result.output.splitlines() if x.startswith("autonomous/insert"))
-    assert "30.0" in line and "0.75" in line
+    assert "30.0" in line and line.endswith("0.75 (joint 12)")
     result = CliRunner().invoke(app, ["steps", str(trace), "--json"])
     assert result.exit_code == 0, result.output
     rows = json.loads(result.output)

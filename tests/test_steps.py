@@ -79,7 +79,9 @@ def write_trace(path: Path) -> None:
                 {"position": [0.0, 0.0, 0.0, 0.10], "velocity": [0.0] * 4},
             )
             w.write(TENSION_ESTIMATED, t, _estimates(0.2 + 1.0 * math.sin(math.pi * k / n), 0.07))
-            w.write(GROUND_TRUTH_TENSION, t, {"tension_N": 0.5 + (0.25 if k == 37 else 0.0)})
+            # the thread's peak at k = 37, at joint 12; a null (non-finite) reading at k = 5
+            tension = None if k == 5 else 0.5 + (0.25 if k == 37 else 0.0)
+            w.write(GROUND_TRUTH_TENSION, t, {"tension_N": tension, "joint": 12 if k == 37 else 3})
         w.write(
             TRANSITIONS,
             2 * S + 1,
@@ -143,7 +145,8 @@ def test_estimates_are_per_robot_and_per_state(tmp_path: Path) -> None:
     assert rows["turn"].robots["a"].estimate_peak_N is None
     # the true peak is the state's own, not the run's
     assert rows["insert"].true_peak_N == pytest.approx(0.75)
-    assert rows["turn"].true_peak_N is None
+    assert rows["insert"].true_peak_joint == 12  # where it acted, on the thread
+    assert rows["turn"].true_peak_N is None and rows["turn"].true_peak_joint is None
 
 
 def test_states_are_chosen_by_glob_with_or_without_the_mode(tmp_path: Path) -> None:

@@ -49,12 +49,18 @@ def _rows(trace: Path, label: dict[str, Any], states: Sequence[str]) -> list[dic
                 else:
                     row[f"{robot}.{key}"] = value
         row["true_peak_N (ground truth)"] = s.true_peak_N
+        row["true_peak_joint (ground truth)"] = s.true_peak_joint
         rows.append(row)
     return rows
 
 
 def _num(value: Any, digits: int) -> str:
     return "-" if value is None else f"{value:.{digits}f}"
+
+
+def _at(row: dict[str, Any]) -> str:
+    joint = row.get("true_peak_joint (ground truth)")
+    return "" if joint is None else f" (joint {joint})"
 
 
 def _text(trace: Path, label: dict[str, Any], rows: list[dict[str, Any]], out: TextIO) -> None:
@@ -76,7 +82,7 @@ def _text(trace: Path, label: dict[str, Any], rows: list[dict[str, Any]], out: T
         )
         out.write(
             f"{r['state']:<{width}} {r['start_s']:>9.2f} {r['end_s']:>9.2f}{cells}"
-            f"  {_num(r['true_peak_N (ground truth)'], 2)}\n"
+            f"  {_num(r['true_peak_N (ground truth)'], 2)}{_at(r)}\n"
         )
 
 

@@ -77,6 +77,9 @@ class StateMeasures:
         robots: per robot, its :class:`RobotMeasures`.
         true_peak_N: the largest true tension during the state [N]; ground truth, for
             evaluation only (``None`` when the run had no simulated thread).
+        true_peak_joint: the thread's joint that peak acted at (an index among the
+            ``/ground_truth/suture`` centerline's points; ``None`` when the trace does not
+            say, as traces written before 2026-12-06 do not).
     """
 
     state: str
@@ -84,6 +87,7 @@ class StateMeasures:
     end_s: float
     robots: dict[str, RobotMeasures] = field(default_factory=dict)
     true_peak_N: float | None = None
+    true_peak_joint: int | None = None
 
     @property
     def duration_s(self) -> float:
@@ -166,6 +170,7 @@ def state_measures(path: str | Path, *, states: Sequence[str] = ()) -> Iterator[
     start = 0.0
     t = 0.0
     true_peak: float | None = None
+    true_joint: int | None = None
 
     def row(end: float) -> StateMeasures:
         return StateMeasures(
@@ -174,6 +179,7 @@ def state_measures(path: str | Path, *, states: Sequence[str] = ()) -> Iterator[
             end,
             {r: s.measures() for r, s in sums.items()},
             true_peak,
+            true_joint,
         )
 
     def wanted(name: str) -> bool:
@@ -198,14 +204,17 @@ def state_measures(path: str | Path, *, states: Sequence[str] = ()) -> Iterator[
                 if robot in sums and entry.get("tension_N") is not None:
                     sums[robot].estimate(float(entry["tension_N"]))
         elif topic == GROUND_TRUTH_TENSION:
-            value = float(msg.data["tension_N"])
-            true_peak = value if true_peak is None else max(true_peak, value)
+            value = msg.data.get("tension_N")  # null: a non-finite reading, skipped
+            if value is not None and math.isfinite(value):
+                if true_peak is None or value > true_peak:
+                    true_peak, joint = float(value), msg.data.get("joint")
+                    true_joint = None if joint is None else int(joint)
         else:
             if state is None:
                 state = str(msg.data["source"])
             if wanted(state):
                 yield row(t)
-            state, start, true_peak = str(msg.data["dest"]), t, None
+            state, start, true_peak, true_joint = str(msg.data["dest"]), t, None, None
             sums = {r: s.carry() for r, s in sums.items()}
     if wanted(state or "(start)"):
         yield row(t)
