@@ -63,12 +63,17 @@ class Skill(ABC):
         Params: the pydantic parameter model (``extra="forbid"``).
         tools: the tool types the skill's ``robot`` must carry (``None``: any);
             checked by the dry-run.
+        events: the named failure events the skill may report
+            (:attr:`suture_engine.runtime.observation.StepResult.event`). A state running
+            the skill may send each to a state of its own (``on: {EVENT: STATE}``); one it
+            does not route is a plain failure (the ``failed`` policy).
         params: this instance's validated parameters.
     """
 
     name: ClassVar[str]
     Params: ClassVar[type[SkillParams]]
     tools: ClassVar[tuple[str, ...] | None] = None
+    events: ClassVar[tuple[str, ...]] = ()
     scene_request: tuple[str, dict[str, Any]] | None = None
     """A change of the world the skill asks the runtime for: ``(backend method, keyword
     arguments)``, carried out by the interpreter (which then sets it to None) on the tick

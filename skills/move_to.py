@@ -15,7 +15,12 @@ from suture_engine.language.units import Angle, Force, Length, Position, Speed
 if TYPE_CHECKING:
     from suture_engine.validation.problem import Problem
 
-__all__ = ["MoveTo", "MoveToParams"]
+__all__ = ["NOT_TAUT", "TAUT_EARLY", "MoveTo", "MoveToParams"]
+
+TAUT_EARLY = "taut-early"
+"""Failure event: the strand went taut (``until_tension``) before ``taut_after``."""
+NOT_TAUT = "not-taut"
+"""Failure event: the strand was not taut within ``taut_within`` of travel."""
 
 
 @functools.cache
@@ -92,10 +97,15 @@ class MoveTo(Skill):
     trajectory is over and the measured tool tip is within ``tolerance`` [m] of
     the goal, and fails if it is not there ``SETTLE_S`` [s] later (with a roll, also
     ``ROLL_SETTLE_S``).
+
+    A guarded move's window fails with a named event that a state may route on its own
+    (:attr:`events`): ``taut-early`` when the strand goes taut before ``taut_after``,
+    ``not-taut`` when it is not taut within ``taut_within``.
     """
 
     name: ClassVar[str] = "move-to"
     Params: ClassVar[type[SkillParams]] = MoveToParams
+    events: ClassVar[tuple[str, ...]] = (TAUT_EARLY, NOT_TAUT)
 
     SETTLE_S: ClassVar[float] = 1.0
     """Time allowed after the trajectory's end to reach the tolerance [s]."""
@@ -282,6 +292,7 @@ class MoveTo(Skill):
                         SkillStatus.FAILURE,
                         f"tension {p.until_tension:.2f} N reached after only {travel * 1e3:.1f} "
                         f"mm of travel (not before {p.taut_after * 1e3:.2f} mm)",
+                        TAUT_EARLY,
                     )
                 if self._other_est is not None and other_tension > p.free_share * tension:
                     return StepResult(
@@ -300,6 +311,7 @@ class MoveTo(Skill):
                         SkillStatus.FAILURE,
                         f"tension {p.until_tension:.2f} N not reached within "
                         f"{p.taut_within * 1e3:.1f} mm of travel",
+                        NOT_TAUT,
                     )
         if not sample.done:
             return StepResult(command)

@@ -105,7 +105,8 @@ def test_states_follow_the_thesis_steps() -> None:
         "align-jaws",  # two turns, and the mirrored second throw with align_mirror
         "draw-tail",
         "clear-jaws",  # mirrored second throw only
-        "slide-off",
+        "slide-off-free",  # first throw with retry_slide_off (its failure: free-ease ... reslide)
+        "slide-off",  # without retry_slide_off
         "tighten",
     ]
 

@@ -16,7 +16,9 @@ unpredictable event ``fault`` (e~_i: invariant violated, skill failure,
 timeout, sensor fault, operator interrupt) into the step's NOT-BE state; from
 there the step's :class:`FailurePolicy` fires ``retry`` (e^_{i-1}: the previous
 step once more, at most N times), ``lock`` (wait for the operator), ``abort``
-or ``fail``. The operator may at any tick ``lock``, take ``manual``,
+or ``fail``; a skill's named failure event (``taut-early``) that the step
+routes (``on: {taut-early: free-loop}``) fires ``recover`` to that state instead.
+The operator may at any tick ``lock``, take ``manual``,
 ``resume`` (at the interrupted step or a named one) or ``abort``.
 
 Modes, retries and invariants live here and in the interpreter; skills stay
@@ -139,6 +141,9 @@ class StepSpec:
         enabled: False when the state's ``when:`` is false: entering the step skips it
             (no skill is built; it completes at once with its planned event, the
             transition's reason saying it was skipped).
+        on_event: named failure event -> the step or terminal it leads to
+            (``on: {taut-early: free-loop}``); a failure with another event, or none,
+            follows :attr:`policy`.
     """
 
     name: str
@@ -150,6 +155,7 @@ class StepSpec:
     robots: tuple[str, ...] = ()
     roles: Mapping[str, str] = field(default_factory=dict)
     enabled: bool = True
+    on_event: Mapping[str, str] = field(default_factory=dict)
 
 
 SKIPPED = "skipped"
@@ -288,6 +294,14 @@ class Automaton:
                 raise AutomatonError(
                     f"step {step.name!r}: failed leads to unknown state {goto!r}", step.name
                 )
+            for event, dest in step.on_event.items():
+                if event in ("done", "failed") or dest not in names:
+                    raise AutomatonError(
+                        f"step {step.name!r}: event {event!r} leads to unknown state {dest!r}"
+                        if dest not in names
+                        else f"step {step.name!r}: {event!r} is not a named failure event",
+                        step.name,
+                    )
         for step in plan.steps.values():
             seen: list[str] = []
             name = step.name
@@ -327,6 +341,17 @@ class Automaton:
             for src in ["lock", "manual"] + [f"autonomous/{notbe(s)}" for s in steps]:
                 m.add_transition("resume", src, dest, conditions=cond, before=self._before_enter)
         for s in steps:
+            # a named failure event's route first, each taken only for its own target;
+            # then the step's unconditional `failed:` state, if any
+            for dest in dict.fromkeys(self.plan.steps[s].on_event.values()):
+                full = f"autonomous/{dest}" if dest in self.plan.steps else dest
+                m.add_transition(
+                    "recover",
+                    f"autonomous/{notbe(s)}",
+                    full,
+                    conditions=self._is_target(dest),
+                    before=self._before_enter,
+                )
             goto = self.plan.steps[s].policy.goto
             if goto is not None:
                 full = f"autonomous/{goto}" if goto in self.plan.steps else goto
@@ -486,12 +511,16 @@ class Automaton:
             return self._enter_step("advance", "planned", dest, reason=reason, previous=step)
         return [self._fire("advance", "planned", reason)]
 
-    def unpredictable(self, reason: str, operator_lock: bool = False) -> list[TransitionRecord]:
+    def unpredictable(
+        self, reason: str, operator_lock: bool = False, event: str = ""
+    ) -> list[TransitionRecord]:
         """An unpredictable event e~_i: into the step's NOT-BE state, then apply its policy.
 
         Args:
             reason: what happened ("invariant:tension", "timeout", "skill-failure", ...).
             operator_lock: an operator interrupt: lock after NOT-BE instead of the policy.
+            event: the skill's named failure event, if any (``taut-early``): a step that
+                routes it (:attr:`StepSpec.on_event`) goes there instead of its policy.
         """
         step = self.step_name
         if self.mode is not Mode.AUTONOMOUS or step is None:
@@ -503,7 +532,7 @@ class Automaton:
             out.append(self._fire("lock", "operator", reason))
             self.waiting_for_operator = True
             return out
-        return out + self._apply_policy(reason)
+        return out + self._apply_policy(reason, event)
 
     def emergency_lock(self, reason: str) -> list[TransitionRecord]:
         """The monitor's emergency (tension near its limit, a non-finite measurement, a
@@ -525,9 +554,15 @@ class Automaton:
         self.waiting_for_operator = True
         return out
 
-    def _apply_policy(self, reason: str) -> list[TransitionRecord]:
+    def _apply_policy(self, reason: str, event: str = "") -> list[TransitionRecord]:
         step = self.step_name
         assert step is not None
+        routed = self.plan.steps[step].on_event.get(event) if event else None
+        if routed is not None:
+            why = f"{event}:{step}"
+            if routed in self.plan.steps:
+                return self._enter_step("recover", "policy", routed, why)
+            return [self._fire("recover", "policy", why, target=routed)]
         policy = self.plan.steps[step].policy
         if self.retries[step] < policy.retry:
             self.retries[step] += 1

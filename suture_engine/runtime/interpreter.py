@@ -460,11 +460,11 @@ class Interpreter:
             self._record_transitions(time_ns, a.unpredictable(violation.reason))
             return None
         if spec.timeout_s is not None and obs.t - self.ctx.t0 >= spec.timeout_s - 0.5 * self.dt:
-            self._record_transitions(time_ns, a.unpredictable("timeout"))
+            self._record_transitions(time_ns, a.unpredictable("timeout", event="timeout"))
             return None
         if result.status is _FAILURE:
             reason = f"skill-failure:{result.message}" if result.message else "skill-failure"
-            self._record_transitions(time_ns, a.unpredictable(reason))
+            self._record_transitions(time_ns, a.unpredictable(reason, event=result.event))
             return result.command
         if result.status is _SUCCESS:
             self._apply_registration(a.active_skill)

@@ -447,11 +447,15 @@ class StepResult:
         command: the command for this tick.
         status: running, success (planned event) or failure (unpredictable event).
         message: why it failed (empty otherwise).
+        event: with a failure, the named failure event it is (one of the skill's
+            :attr:`skills.base.Skill.events`, e.g. ``taut-early``), which a state may
+            route on its own (``on: {taut-early: free-loop}``); empty: a plain failure.
     """
 
     command: Command
     status: SkillStatus = SkillStatus.RUNNING
     message: str = ""
+    event: str = ""
 
     @classmethod
     def running(cls, command: Command) -> StepResult:
@@ -462,4 +466,5 @@ class StepResult:
         d["command"] = command
         d["status"] = _RUNNING
         d["message"] = ""
+        d["event"] = ""
         return r

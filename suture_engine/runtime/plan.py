@@ -195,6 +195,11 @@ def _inline(
         policy = _policy(st.on.get("failed"))
         if policy.goto is not None:
             policy = FailurePolicy(policy.retry, policy.then, resolve(policy.goto))
+        on_event = {
+            event: resolve(target)
+            for event, target in st.on.items()
+            if event not in ("done", "failed") and isinstance(target, str)
+        }
         if st.params is None:
             raise AutomatonError(f"state {prefix + name!r}: its parameters are invalid", name)
         steps[prefix + name] = StepSpec(
@@ -207,6 +212,7 @@ def _inline(
             robots=_robots(st.params, roles),
             roles=roles,
             enabled=bool(getattr(st, "enabled", True)),
+            on_event=on_event,
         )
     return resolve(proc.initial)
 

@@ -23,6 +23,7 @@ from collections import deque
 from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any
 
+from suture_engine.errors import SutureError
 from suture_engine.language.model import MAX_RETRY, FailurePolicy
 from suture_engine.language.refs import SceneRef
 from suture_engine.language.scene import ON_SURFACE_TOLERANCE
@@ -124,6 +125,27 @@ def _edges(state: LoadedState) -> Iterator[tuple[str, str]]:
             yield event, target
 
 
+BASE_EVENTS = ("done", "failed")
+"""The events every non-terminal state may route: its planned event and its failure."""
+
+
+def _events(state: LoadedState) -> set[str]:
+    """The events ``state`` can raise: :data:`BASE_EVENTS`, ``timeout`` when it has one,
+    and for a skill state the skill's named failure events
+    (:attr:`skills.base.Skill.events`)."""
+    from skills.registry import get_skill
+
+    out = set(BASE_EVENTS)
+    if state.timeout is not None:
+        out.add("timeout")
+    if state.skill is not None:
+        try:
+            out |= set(get_skill(state.skill).events)
+        except SutureError:  # an unknown skill: reported by the state's own checks
+            out |= {e for e in state.on if e not in BASE_EVENTS}
+    return out
+
+
 def _graph(proc: Procedure) -> list[Problem]:
     src = _source(proc)
     out: list[Problem] = []
@@ -147,8 +169,31 @@ def _graph(proc: Procedure) -> list[Problem]:
         )
     succ: dict[str, set[str]] = {n: set() for n in names}
     for name, state in proc.states.items():
+        allowed = _events(state)
         for event, target in state.on.items():
             where: PathKey = ("states", name, "on", event)
+            if event not in allowed:
+                close = difflib.get_close_matches(event, sorted(allowed), n=1, cutoff=0.6)
+                hint = f"; did you mean {close[0]!r}?" if close else ""
+                out.append(
+                    src.problem(
+                        "unknown-event",
+                        f"state {name!r} never raises event {event!r}: expected one of "
+                        f"{', '.join(sorted(allowed))}{hint}",
+                        where,
+                    )
+                )
+                continue
+            if event not in BASE_EVENTS and isinstance(target, FailurePolicy):
+                out.append(
+                    src.problem(
+                        "bad-event-target",
+                        f"the named failure event {event!r} leads to a state (its name), "
+                        "not a retry policy: a policy belongs to `failed`",
+                        where,
+                    )
+                )
+                continue
             if isinstance(target, FailurePolicy):
                 out.extend(_policy(src, target, where))
                 continue
