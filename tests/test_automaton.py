@@ -109,6 +109,65 @@ def test_failed_goto_recovers_into_a_named_state() -> None:
     assert records[-1].event == "recover" and a.state == "autonomous/c"
 
 
+def _routed_plan(policy: FailurePolicy, on_event: dict[str, str]) -> Plan:
+    """a -> b -> c -> end, b routing named failure events; ``free`` leads back to c."""
+
+    def make(name: str) -> Any:
+        return lambda: _Skill(name)
+
+    return Plan(
+        "p",
+        "a",
+        {
+            "a": StepSpec("a", make("a"), "b"),
+            "b": StepSpec("b", make("b"), "c", policy, on_event=on_event),
+            "free": StepSpec("free", make("free"), "c"),
+            "c": StepSpec("c", make("c"), "end"),
+        },
+        {"end": Outcome.SUCCEEDED, "given-up": Outcome.FAILED},
+    )
+
+
+@pytest.mark.parametrize(
+    ("policy", "event", "state", "mode"),
+    [
+        # the routed event goes to its state, ahead of the step's retry
+        (FailurePolicy(2, Then.LOCK), "taut-early", "autonomous/free", Mode.AUTONOMOUS),
+        # ... and ahead of a `failed:` state
+        (FailurePolicy(0, goto="c"), "taut-early", "autonomous/free", Mode.AUTONOMOUS),
+        # another named event, or none, follows the policy
+        (FailurePolicy(0, Then.LOCK), "not-taut", "lock", Mode.LOCK),
+        (FailurePolicy(0, Then.LOCK), "", "lock", Mode.LOCK),
+        (FailurePolicy(1, Then.LOCK), "not-taut", "autonomous/a", Mode.AUTONOMOUS),
+        (FailurePolicy(0, goto="c"), "timeout", "autonomous/c", Mode.AUTONOMOUS),
+        # a terminal as the route
+        (FailurePolicy(0, Then.LOCK), "stall", "given-up", Mode.TERMINAL),
+    ],
+)
+def test_a_named_failure_event_follows_its_route_before_the_policy(
+    policy: FailurePolicy, event: str, state: str, mode: Mode
+) -> None:
+    started: list[str] = []
+    a = _automaton(_routed_plan(policy, {"taut-early": "free", "stall": "given-up"}), started)
+    a.start()
+    a.planned()
+    records = a.unpredictable("skill-failure:x", event=event)
+    assert records[0].dest == "autonomous/b~notbe"  # through NOT-BE as any fault
+    assert (a.state, a.mode) == (state, mode)
+    if state == "autonomous/free":
+        assert records[-1].event == "recover" and records[-1].reason == f"{event}:b"
+        assert started == ["a", "b", "free"] and a.retries["b"] == 0
+        a.planned()
+        assert a.state == "autonomous/c"
+    if mode is Mode.TERMINAL:
+        assert a.outcome is Outcome.FAILED
+
+
+def test_a_route_to_an_unknown_state_is_refused_at_compile() -> None:
+    with pytest.raises(AutomatonError, match="taut-early"):
+        _automaton(_routed_plan(FailurePolicy(), {"taut-early": "nowhere"}))
+
+
 def test_retry_budget_is_bounded_then_lock() -> None:
     a = _automaton(_plan(FailurePolicy(2, Then.LOCK)))
     a.start()

@@ -151,6 +151,41 @@ def test_a_guard_met_past_its_travel_floor_succeeds_as_without_it() -> None:
     assert 0.003 < rise < 0.009
 
 
+@pytest.mark.parametrize(
+    ("pull_N", "pull_at_s", "route", "outcome"),
+    [
+        (1.0, 0.8, ["take-up", "take-up~notbe", "ease", "caught"], "failed"),  # ~0.7 mm
+        (0.0, 0.8, ["take-up", "take-up~notbe", "slack", "nothing-taken"], "failed"),
+        (1.0, 2.0, ["take-up", "rest", "finished"], "succeeded"),  # ~7 mm: in the window
+    ],
+)
+def test_each_way_out_of_a_guard_window_is_an_event_a_state_can_route(
+    pull_N: float, pull_at_s: float, route: list[str], outcome: str
+) -> None:
+    """taut_after 3 mm, taut_within 20 mm: taut too soon raises ``taut-early``, nothing
+    taut within 20 mm ``not-taut``; ``guarded-routed.yaml`` sends each to its own state
+    (through NOT-BE, as any fault), where its ``failed`` policy would abort."""
+    from test_monitor import PROCS, _pybullet_run
+
+    states: list[str] = []
+
+    def on_tick(it: Any) -> None:
+        t = round(it._obs.t, 3)
+        if t == pull_at_s and pull_N > 0.0:
+            it.backend.apply_external_force("endobot_1", (-pull_N, 0.0, 0.0), 0.5)
+
+    it, summary = _pybullet_run(PROCS / "guarded-routed.yaml", [], on_tick, 6.0)
+    for rec in it.automaton.history:
+        name = rec.dest.split("/", 1)[-1]
+        if not states or states[-1] != name:
+            states.append(name)
+    assert summary.outcome == outcome
+    assert states == route
+    if "ease" in route:
+        reason = next(r.reason for r in it.automaton.history if r.event == "recover")
+        assert reason == "taut-early:take-up"
+
+
 def _free_of_run(other_N: float) -> tuple[str, float, str]:
     """The guarded move of ``guarded-free-of.yaml``: from 0.8 s a 1 N pull holds the
     stitcher back along -x and, as a strand anchored on the grasper would, ``other_N`` [N]

@@ -35,6 +35,7 @@ from suture_engine.runtime.observation import (
 
 ROOT = Path(__file__).resolve().parent.parent
 PROC = ROOT / "procedures" / "knot-algorithm-3.yaml"
+SQUARE_ALG3_PROC = ROOT / "procedures" / "square-knot.yaml"
 
 
 def sampled_gap(p1: Any, q1: Any, p2: Any, q2: Any, n: int = 801) -> float:
@@ -109,6 +110,43 @@ def test_states_follow_the_thesis_steps() -> None:
         "slide-off",  # without retry_slide_off
         "tighten",
     ]
+
+
+@pytest.mark.parametrize("retry", [False, True])
+def test_a_first_slide_off_caught_on_the_arm_is_retried_once_only_with_retry_slide_off(
+    retry: bool,
+) -> None:
+    """retry_slide_off: the first throw's slide-off routes ``taut-early`` (the loop caught on
+    the arm) to free-ease, free-bend, free-arm and one reslide; ``not-taut`` (nothing tied)
+    and any other failure still lock, as does the reslide's. Off, the same move runs as
+    ``slide-off`` and every failure locks. The mirrored throw never retries this way."""
+    from suture_engine.runtime.automaton import Then
+    from suture_engine.runtime.run import load_plan
+
+    _, plan = load_plan(SQUARE_ALG3_PROC, ["algorithm=3", f"retry_slide_off={str(retry).lower()}"])
+    first, mirrored = "simple-knot.", "mirrored-knot."
+    runs, skipped = ("slide-off-free", "slide-off") if retry else ("slide-off", "slide-off-free")
+    assert plan.steps[first + runs].enabled and not plan.steps[first + skipped].enabled
+    assert plan.steps[mirrored + "slide-off"].enabled
+    assert not plan.steps[mirrored + "slide-off-free"].enabled
+    # the same move either way: the runs that tie are not changed by the option
+    assert plan.steps[first + "slide-off-free"].make_skill().params == (
+        plan.steps[first + "slide-off"].make_skill().params
+    )
+    free = plan.steps[first + "slide-off-free"]
+    assert dict(free.on_event) == {"taut-early": first + "free-ease"}
+    assert free.policy.retry == 0 and free.policy.then is Then.LOCK and free.policy.goto is None
+    chain, name = [], first + "free-ease"
+    while name.startswith(first) and not name.endswith("tighten"):
+        chain.append(name.removeprefix(first))
+        assert plan.steps[name].policy.then is Then.LOCK and not plan.steps[name].on_event
+        name = plan.steps[name].on_done
+    assert chain == ["free-ease", "free-bend", "free-arm", "reslide"]
+    assert name == first + "tighten"
+    reslide = plan.steps[first + "reslide"].make_skill().params
+    slide = plan.steps[first + "slide-off"].make_skill().params
+    assert (reslide.taut_after, reslide.taut_within) == (slide.taut_after, slide.taut_within)
+    assert reslide.until_tension == slide.until_tension
 
 
 def test_the_bent_jaws_close_on_the_tail_end() -> None:

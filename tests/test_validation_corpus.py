@@ -37,7 +37,8 @@ CHECKS_COVERED = {
     "missing-use", "cyclic-use", "include-outside", "unknown-param", "bad-param",
     "missing-param", "unknown-point", "unknown-role", "unknown-robot", "unknown-skill",
     "unreachable", "singularity", "tension-limit", "unstable-gains", "tool-mismatch",
-    "missing-scene", "include-too-deep", "taut-within-without-guard",
+    "missing-scene", "include-too-deep", "taut-within-without-guard", "unknown-event",
+    "bad-event-target",
 }  # fmt: skip
 
 
