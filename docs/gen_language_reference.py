@@ -117,6 +117,16 @@ def field_docs(model: type) -> dict[str, str]:
     return docs
 
 
+def skill_events(skill: str) -> tuple[str, ...]:
+    """The skill's named failure events (``Skill.events``); none if it does not import."""
+    from skills.registry import get_skill
+
+    try:
+        return tuple(get_skill(skill).events)
+    except Exception:  # a skill that does not import: structure only
+        return ()
+
+
 def skill_models(s: dict[str, Any]) -> dict[str, tuple[str, dict[str, str]]]:
     """``{def name: (skill name, field docs)}`` from the schema's skill dispatch."""
     from skills.registry import get_skill
@@ -183,6 +193,11 @@ def render(s: dict[str, Any]) -> str:
         lines.append("")
         if d.get("description"):
             lines += [_md(d["description"]), ""]
+        if name in skills:
+            events = skill_events(skills[name][0])
+            if events:
+                names = ", ".join(f"`{e}`" for e in events)
+                lines += [f"Named failure events (route with `on: {{EVENT: STATE}}`): {names}.", ""]
         props: dict[str, Any] = d.get("properties", {})
         if not props:
             continue

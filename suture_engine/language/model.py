@@ -140,7 +140,11 @@ class StateDocument(_Model):
     timeout: Duration | None = Field(default=None, gt=0.0)
     """Time after which the state raises the ``timeout`` event [s]."""
     on: dict[str, str | FailurePolicy] = Field(default_factory=dict)
-    """Event -> next state, or a failure policy. On a ``use:`` state ``done`` is where the
+    """Event -> next state, or a failure policy. ``done`` (the planned event) and
+    ``failed`` (any failure: a state or a policy) on every state; on a skill state also
+    the skill's named failure events (move-to's ``taut-early`` and ``not-taut``), and
+    ``timeout`` when the state has one, each to a state: such a failure goes there, and
+    one not routed follows ``failed``. On a ``use:`` state ``done`` is where the
     sub-procedure's ``succeeded`` terminals lead; its ``failed`` terminals end the run
     unless ``failed:`` names a state (they lead there) or gives a policy (they fail as a
     step would: ``retry`` runs the sub-procedure again from its first step, then lock or
