@@ -106,8 +106,8 @@ def test_states_follow_the_thesis_steps() -> None:
         "align-jaws",  # two turns, and the mirrored second throw with align_mirror
         "draw-tail",
         "clear-jaws",  # mirrored second throw only
-        "slide-off-free",  # first throw with retry_slide_off (its failure: free-ease ... reslide)
-        "slide-off",  # without retry_slide_off
+        "slide-off-free",  # first throw, retry_slide_off (default; taut-early: free-ease, reslide)
+        "slide-off",  # the other throws, and the first without retry_slide_off
         "tighten",
     ]
 
@@ -417,7 +417,8 @@ def test_algorithm_3_ties_a_simple_knot_on_pybullet(tmp_path: Path) -> None:
     )
     events = [m.data for m in trace.messages(["/events"])]
     done = [e["detail"] for e in events if e["kind"] == "planned"]
-    for step in ("bend", "loop", "grab-tail", "slide-off", "tighten"):
+    # the first slide-off runs as slide-off-free (retry_slide_off, the default)
+    for step in ("bend", "loop", "grab-tail", "slide-off-free", "tighten"):
         assert f"done:{step}" in done
     bends = [m.data["bend"] for m in trace.messages(["/tool_state/endobot_2"])]
     assert min(b[1] for b in bends) == pytest.approx(-math.pi / 2, abs=math.radians(1.0))
@@ -983,7 +984,7 @@ def test_the_square_knots_mirrored_throw_that_ties_nothing_stops_the_run(
     assert faults[-1]["state"] == f"autonomous/mirrored-knot.{step}", faults
     assert faults[-1]["detail"].startswith(check)
     details = [e["detail"] for e in events]
-    assert "done:simple-knot.slide-off" in details
+    assert "done:simple-knot.slide-off-free" in details  # retry_slide_off: not needed
     assert ("done:mirrored-knot.slide-off" in details) is (step == "tighten")
     assert summary["knot"]["type"] == "trefoil"
     assert summary["metrics"]["peak_true_tension_N"] < summary["tension_limit_N"]
