@@ -130,10 +130,13 @@ def test_a_first_slide_off_caught_on_the_arm_is_retried_once_only_with_retry_sli
     assert plan.steps[first + runs].enabled and not plan.steps[first + skipped].enabled
     assert plan.steps[mirrored + "slide-off"].enabled
     assert not plan.steps[mirrored + "slide-off-free"].enabled
-    # the same move either way: the runs that tie are not changed by the option
-    assert plan.steps[first + "slide-off-free"].make_skill().params == (
-        plan.steps[first + "slide-off"].make_skill().params
-    )
+    # the same move either way, and again in the reslide: 80 mm along the holder's -x
+    # (5 mm down) at 5 mm/s to 0.5 N, taut not before 24 mm nor after 74 mm of travel
+    for step in ("slide-off-free", "slide-off", "reslide"):
+        p = plan.steps[first + step].make_skill().params
+        assert p.target == pytest.approx((-80e-3, 0.0, -5e-3)) and p.relative_to == "stitcher"
+        assert (p.speed, p.until_tension) == pytest.approx((5e-3, 0.5))
+        assert (p.taut_after, p.taut_within) == pytest.approx((24e-3, 74e-3))
     free = plan.steps[first + "slide-off-free"]
     assert dict(free.on_event) == {"taut-early": first + "free-ease"}
     assert free.policy.retry == 0 and free.policy.then is Then.LOCK and free.policy.goto is None
@@ -144,10 +147,8 @@ def test_a_first_slide_off_caught_on_the_arm_is_retried_once_only_with_retry_sli
         name = plan.steps[name].on_done
     assert chain == ["free-ease", "reslide"]
     assert name == first + "tighten"
-    reslide = plan.steps[first + "reslide"].make_skill().params
-    slide = plan.steps[first + "slide-off"].make_skill().params
-    assert (reslide.taut_after, reslide.taut_within) == (slide.taut_after, slide.taut_within)
-    assert reslide.until_tension == slide.until_tension
+    ease = plan.steps[first + "free-ease"].make_skill().params
+    assert ease.target == pytest.approx((15e-3, 0.0, 5e-3)) and ease.relative_to == "stitcher"
 
 
 def test_the_bent_jaws_close_on_the_tail_end() -> None:

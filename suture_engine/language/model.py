@@ -53,6 +53,10 @@ MAX_RETRY = 10
 OUTCOMES = ("succeeded", "failed", "aborted")
 """The outcomes a terminal state may carry."""
 
+BASE_EVENTS = ("done", "failed")
+"""The events every non-terminal state may route: its planned event and any failure
+(a skill's named failure events and ``timeout`` come on top)."""
+
 
 class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, populate_by_name=True, defer_build=True)

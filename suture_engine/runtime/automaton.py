@@ -295,11 +295,9 @@ class Automaton:
                     f"step {step.name!r}: failed leads to unknown state {goto!r}", step.name
                 )
             for event, dest in step.on_event.items():
-                if event in ("done", "failed") or dest not in names:
+                if dest not in names:
                     raise AutomatonError(
-                        f"step {step.name!r}: event {event!r} leads to unknown state {dest!r}"
-                        if dest not in names
-                        else f"step {step.name!r}: {event!r} is not a named failure event",
+                        f"step {step.name!r}: event {event!r} leads to unknown state {dest!r}",
                         step.name,
                     )
         for step in plan.steps.values():

@@ -22,6 +22,7 @@ from collections.abc import Mapping
 from functools import partial
 from typing import Any
 
+from suture_engine.language.model import BASE_EVENTS
 from suture_engine.runtime.automaton import (
     AutomatonError,
     FailurePolicy,
@@ -198,7 +199,7 @@ def _inline(
         on_event = {
             event: resolve(target)
             for event, target in st.on.items()
-            if event not in ("done", "failed") and isinstance(target, str)
+            if event not in BASE_EVENTS and isinstance(target, str)
         }
         if st.params is None:
             raise AutomatonError(f"state {prefix + name!r}: its parameters are invalid", name)

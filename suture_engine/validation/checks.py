@@ -24,7 +24,7 @@ from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any
 
 from suture_engine.errors import SutureError
-from suture_engine.language.model import MAX_RETRY, FailurePolicy
+from suture_engine.language.model import BASE_EVENTS, MAX_RETRY, FailurePolicy
 from suture_engine.language.refs import SceneRef
 from suture_engine.language.scene import ON_SURFACE_TOLERANCE
 from suture_engine.language.units import Unit
@@ -123,10 +123,6 @@ def _edges(state: LoadedState) -> Iterator[tuple[str, str]]:
     for event, target in state.on.items():
         if isinstance(target, str):
             yield event, target
-
-
-BASE_EVENTS = ("done", "failed")
-"""The events every non-terminal state may route: its planned event and its failure."""
 
 
 def _events(state: LoadedState) -> set[str]:
