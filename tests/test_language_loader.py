@@ -189,6 +189,74 @@ def test_parameter_bounds_and_bare_numbers_in_the_declared_unit(tmp_path: Path) 
     assert sorted(codes) == ["missing-scene", "out-of-bounds"]
 
 
+def _defaults_file(tmp_path: Path, params: str) -> Path:
+    path = tmp_path / "defaults.yaml"
+    path.write_text(
+        "procedure: defaults\n"
+        f"scene: {PROCEDURES / 'scenes' / 'bench.yaml'}\n"
+        "params:\n"
+        "  algorithm: {type: int, default: 2, choices: [1, 2, 3]}\n"
+        f"{params}"
+        "initial: end\n"
+        "states:\n"
+        "  end: {outcome: succeeded}\n"
+    )
+    return path
+
+
+def test_a_default_may_be_an_expression_over_the_parameters_before_it(tmp_path: Path) -> None:
+    """``default: ${...}`` is evaluated over the values of the parameters declared before
+    it, whether they were defaulted or set; a value set for the parameter itself wins."""
+    path = _defaults_file(
+        tmp_path,
+        "  register: {type: bool, default: '${algorithm == 3}'}\n"
+        "  gap: {type: quantity, unit: mm, default: '${2 mm if register else 5 mm}', max: 6 mm}\n",
+    )
+    cases = [
+        ({}, (False, 0.005)),
+        ({"algorithm": 3}, (True, 0.002)),
+        ({"algorithm": 3, "register": False}, (False, 0.005)),
+        ({"register": True, "gap": "4 mm"}, (True, 0.004)),
+    ]
+    for given, (register, gap) in cases:
+        params = load_procedure(path, params=given, allow_outside=True).params
+        assert params["register"] is register, given
+        assert params["gap"] == pytest.approx(gap), given
+
+
+@pytest.mark.parametrize(
+    ("line", "code", "says"),
+    [
+        (
+            "  early: {type: bool, default: '${late > 1}'}\n  late: {type: int, default: 1}\n",
+            "bad-expression",
+            "'late', which is not declared before it",
+        ),
+        ("  own: {type: int, default: '${own + 1}'}\n", "bad-expression", "'own'"),
+        ("  flag: {type: bool, default: '${algorithm}'}\n", "bad-param", "expected true or false"),
+        (
+            "  gap: {type: quantity, unit: mm, default: '${algorithm * 1 N}'}\n",
+            "unit-mismatch",
+            "expected length",
+        ),
+        (
+            "  gap: {type: quantity, unit: mm, default: '${algorithm * 4 mm}', max: 10 mm}\n",
+            "out-of-bounds",
+            "above max",
+        ),
+        ("  n: {type: int, default: '${nope}'}\n", "bad-expression", "unknown name 'nope'"),
+    ],
+)
+def test_a_bad_default_expression_is_one_problem_at_the_default(
+    tmp_path: Path, line: str, code: str, says: str
+) -> None:
+    path = _defaults_file(tmp_path, line)
+    problems = load(path, params={"algorithm": 3}, allow_outside=True).problems
+    assert [(p.code, p.path.rsplit(".", 1)[-1]) for p in problems] == [(code, "default")], problems
+    assert says in problems[0].message
+    assert problems[0].line == 5  # the first parameter after `algorithm`, the one at fault
+
+
 @pytest.mark.parametrize(("scene", "posts"), [("bench.yaml", 0), ("bench-posts.yaml", 4)])
 def test_scene_posts_counts_the_calibration_posts_for_every_included_file(
     tmp_path: Path, scene: str, posts: int

@@ -356,6 +356,45 @@ def _show(value: Any) -> str:
     return str(value) if isinstance(value, Quantity) else repr(value)
 
 
+def _is_default_expression(raw: Any) -> bool:
+    return isinstance(raw, str) and raw.strip().startswith(_INTERP) and raw.strip().endswith("}")
+
+
+def _default_from_expression(
+    ctx: _Context,
+    source: SourceMap,
+    name: str,
+    raw: str,
+    values: Mapping[str, Any],
+    head: _Head,
+) -> Any:
+    """A default written ``${...}``: evaluated over the parameters declared before it.
+
+    A name declared later, or one whose own value was refused, makes a problem at the
+    default: the parameters resolve in the order they are written.
+    """
+    inner = raw.strip()[len(_INTERP) : -1]
+    order = list(head.params)
+    used = [k for k in order if re.search(rf"(?<![\w.]){re.escape(k)}(?!\w)", inner)]
+    here = order.index(name)
+    where: PathKey = ("params", name, "default")
+    later = [k for k in used if order.index(k) >= here]
+    if not later and any(k not in values for k in used):
+        return _INVALID  # an earlier parameter's value was refused, and reported
+    if later:
+        reason = (
+            f"the default {raw!r} uses {later[0]!r}, which is not declared before it; "
+            "a default may use only the parameters declared before it"
+        )
+        ctx.problems.append(source.problem("bad-expression", reason, where))
+        return _INVALID
+    try:
+        return evaluate(inner, {**values, "params": Namespace("params", dict(values))})
+    except ExpressionError as exc:
+        ctx.problems.append(source.problem("bad-expression", exc.message, where))
+        return _INVALID
+
+
 def _resolve_params(
     ctx: _Context, head: _Head, source: SourceMap, binding: _Binding | None
 ) -> dict[str, Any]:
@@ -384,10 +423,11 @@ def _resolve_params(
                 )
             )
             continue
-        # the declaration itself: default, bounds and choices must convert
+        # the declaration itself: default, bounds and choices must convert (a default
+        # written as an expression is converted once evaluated, below)
         for key in ("default", "min", "max"):
             raw = getattr(spec, key)
-            if raw is None:
+            if raw is None or (key == "default" and _is_default_expression(raw)):
                 continue
             try:
                 _convert(spec, raw)
@@ -404,6 +444,8 @@ def _resolve_params(
             raw, from_caller = bound[name], True
         else:
             raw, from_caller = spec.default, False
+            if _is_default_expression(raw):
+                raw = _default_from_expression(ctx, source, name, raw, values, head)
         if isinstance(raw, InvalidValue):
             continue
         if raw is None:
