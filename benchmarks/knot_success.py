@@ -42,7 +42,7 @@ goes to ``OUT/results.csv``. A square knot on a ``*-stitched`` backend
 
 Usage::
 
-    python benchmarks/knot_success.py [--seeds 20] [--algorithms 1,2,3] [--max-time 300]
+    python benchmarks/knot_success.py [--seeds 20] [--algorithms 1,2,3] [--max-time 600]
         [--workers 2] [--out runs/knot-success] [--backend pybullet-surgical]
         [--base-seed 0] [--no-perturb] [--bending-stiffness EI] [--wound-gap MM]
         [--wound-depth MM] [--pad-clear-depth MM]
@@ -644,7 +644,7 @@ def main(argv: Sequence[str]) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--algorithms", default="1,2,3")
-    ap.add_argument("--max-time", type=float, default=300.0, help="simulated s per run")
+    ap.add_argument("--max-time", type=float, default=600.0, help="simulated s per run")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", type=Path, default=ROOT / "runs" / "knot-success")
     ap.add_argument("--backend", default=None, help="default pybullet-surgical(-stitched)")

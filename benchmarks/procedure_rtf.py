@@ -14,7 +14,7 @@ steadier when other jobs share the machine) spent in physics, in the measurement
 interface and in the engine. Pin it to one core on a shared machine:
 
     taskset -c 1 python benchmarks/procedure_rtf.py [--backend pybullet ...]
-        [--max-time 300] [--procedure procedures/square-knot.yaml] [--profile DIR]
+        [--max-time 600] [--procedure procedures/square-knot.yaml] [--profile DIR]
         [--set stitch=true ...]
 
 ``--profile DIR`` also writes a pyinstrument text profile of each run to DIR.
@@ -359,7 +359,7 @@ def main() -> None:
         action="append",
         help="backend name (repeatable; default: pybullet and pybullet-surgical)",
     )
-    ap.add_argument("--max-time", type=float, default=300.0, help="simulated time limit [s]")
+    ap.add_argument("--max-time", type=float, default=600.0, help="simulated time limit [s]")
     ap.add_argument("--profile", type=Path, default=None, help="write pyinstrument profiles here")
     ap.add_argument(
         "--simulator-steps",

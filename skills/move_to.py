@@ -15,12 +15,14 @@ from suture_engine.language.units import Angle, Force, Length, Position, Speed
 if TYPE_CHECKING:
     from suture_engine.validation.problem import Problem
 
-__all__ = ["NOT_TAUT", "TAUT_EARLY", "MoveTo", "MoveToParams"]
+__all__ = ["NOT_TAUT", "SLACK_AT_START", "TAUT_EARLY", "MoveTo", "MoveToParams"]
 
 TAUT_EARLY = "taut-early"
 """Failure event: the strand went taut (``until_tension``) before ``taut_after``."""
 NOT_TAUT = "not-taut"
 """Failure event: the strand was not taut within ``taut_within`` of travel."""
+SLACK_AT_START = "slack-at-start"
+"""Failure event: the strand did not already pull with ``held_at_start`` as the move began."""
 
 
 @functools.cache
@@ -85,6 +87,13 @@ class MoveToParams(SkillParams):
     free_share: float = Field(default=0.3, gt=0.0, le=1.0)
     """With ``free_of``: the largest share of this robot's estimated tension that the
     other robot may take when the guard is met [-]."""
+    held_at_start: Force | None = Field(default=None, gt=0.0)
+    """The strand must already pull on this robot's tool with at least this force as the
+    move begins [N]: the run's own tension estimate (the base sensor's force against its
+    reading at the run's rest, ``|f|`` of 7.6-7.9; not the step's tare), averaged over the
+    step's first :attr:`MoveTo.HELD_WINDOW_S`. Less, and the move stops there and fails
+    (``slack-at-start``): nothing held by this tool is drawn against the knot. ``None``:
+    no such check."""
 
 
 class MoveTo(Skill):
@@ -100,12 +109,13 @@ class MoveTo(Skill):
 
     A guarded move's window fails with a named event that a state may route on its own
     (:attr:`events`): ``taut-early`` when the strand goes taut before ``taut_after``,
-    ``not-taut`` when it is not taut within ``taut_within``.
+    ``not-taut`` when it is not taut within ``taut_within``; ``held_at_start`` fails with
+    ``slack-at-start`` when the strand does not already pull on the tool as it begins.
     """
 
     name: ClassVar[str] = "move-to"
     Params: ClassVar[type[SkillParams]] = MoveToParams
-    events: ClassVar[tuple[str, ...]] = (TAUT_EARLY, NOT_TAUT)
+    events: ClassVar[tuple[str, ...]] = (TAUT_EARLY, NOT_TAUT, SLACK_AT_START)
 
     SETTLE_S: ClassVar[float] = 1.0
     """Time allowed after the trajectory's end to reach the tolerance [s]."""
@@ -113,6 +123,10 @@ class MoveTo(Skill):
     """Peak roll rate of the tool [rad/s]: a 180 deg roll takes 5.9 s."""
     ROLL_TOLERANCE: ClassVar[float] = math.radians(3.0)
     """Arrival tolerance of the roll when the move sets one [rad]."""
+    HELD_WINDOW_S: ClassVar[float] = 0.05
+    """How long ``held_at_start`` averages the base sensor's force from the step's start
+    [s]: 50 samples at 1 kHz take the scene's 0.02 N sensor noise to about 0.003 N, while a
+    minimum-jerk start moves the tip by micrometres."""
     ROLL_SETTLE_S: ClassVar[float] = 1.0
     """Extra settling time when the move sets a roll [s]: on the surgical scene the roll
     joint of the grasper (its tool loaded by the held thread) ends a 180 deg roll ~4 deg
@@ -130,6 +144,8 @@ class MoveTo(Skill):
         self._unit: Any = None
         self._other = ""
         self._other_est: Any = None
+        self._rest_force: Any = None
+        self._held: list[Any] = []
 
     @classmethod
     def check(cls, params: SkillParams, scene: Any) -> list[Problem]:
@@ -239,6 +255,11 @@ class MoveTo(Skill):
         self._t0 = ctx.t0
         self._est = None
         self._tip0 = self._unit = None
+        self._rest_force, self._held = None, []
+        if p.held_at_start is not None:
+            if ctx.rest is None or self._robot not in ctx.rest.robots:
+                raise ValueError("held_at_start needs the run's rest observation (its tare)")
+            self._rest_force = np.array(ctx.rest.robots[self._robot].base_wrench[:3], float)
         if p.until_tension is not None and distance > 0.0:
             tip0 = tool_tip_world(q0, self._base)
             motion = self._goal - tip0
@@ -253,6 +274,28 @@ class MoveTo(Skill):
             if p.taut_within is not None or p.taut_after is not None:
                 self._tip0 = tip0
                 self._unit = motion / distance
+
+    def _held_check(self, obs: Any, sample: Any) -> Any:
+        """``held_at_start``: None while the window fills or once the strand was found
+        pulling; the failure when it was not."""
+        np, Command, RobotCommand, SkillStatus, StepResult, _ = _step_imports()
+        p = self.params
+        assert isinstance(p, MoveToParams) and p.held_at_start is not None
+        self._held.append(np.array(obs.robots[self._robot].base_wrench[:3], float))
+        if obs.t - self._t0 < self.HELD_WINDOW_S:
+            return None
+        pull = float(np.linalg.norm(self._rest_force - np.mean(self._held, axis=0)))
+        self._rest_force, self._held = None, []
+        if pull >= p.held_at_start:
+            return None
+        hold = Command({self._robot: RobotCommand.trusted_position(sample.q, None)})
+        return StepResult(
+            hold,
+            SkillStatus.FAILURE,
+            f"the strand pulls on {p.robot}'s tool with {pull:.3f} N as the move begins, "
+            f"under {p.held_at_start:.2f} N: nothing it holds is drawn against the knot",
+            SLACK_AT_START,
+        )
 
     def step(self, ctx: Any, obs: Any) -> Any:
         """Track the trajectory; report success at the goal, failure if it is not reached.
@@ -271,6 +314,10 @@ class MoveTo(Skill):
         sample = self._traj(t)
         # The sample's arrays are fresh (MinJerk computes new ones per call): handed over.
         command = Command({self._robot: RobotCommand.trusted_position(sample.q, sample.qd)})
+        if self._rest_force is not None:
+            held = self._held_check(obs, sample)
+            if held is not None:
+                return held
         if self._est is not None:
             ro = obs.robots[self._robot]
             tension = self._est.update(ro.base_wrench, ro.q).tension

@@ -58,7 +58,7 @@ def run(
     gui: Annotated[bool, typer.Option(help="Open the simulator window.")] = False,
     max_time: Annotated[
         float, typer.Option(help="Simulated time limit, in seconds (positive).")
-    ] = 300.0,
+    ] = 600.0,
     trace: Annotated[
         Path | None, typer.Option(help="With --backend replay: the recorded trace to serve.")
     ] = None,
@@ -349,7 +349,7 @@ def sweep(
     ] = None,
     max_time: Annotated[
         float, typer.Option(help="Simulated time limit per run, in seconds.")
-    ] = 300.0,
+    ] = 600.0,
 ) -> None:
     """Run a procedure N times with varied parameters; results.csv, summary, plot."""
     from suture_engine.report.cli_sweep import sweep_command

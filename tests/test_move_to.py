@@ -186,6 +186,92 @@ def test_each_way_out_of_a_guard_window_is_an_event_a_state_can_route(
         assert reason == "taut-early:take-up"
 
 
+REST_FORCE = np.array([0.31, -0.22, -11.7])
+"""The base sensor's force at the run's rest [N] (any value: the check reads differences)."""
+
+
+def _held_run(pull: tuple[float, float, float], held_N: float, noise_N: float = 0.0) -> Any:
+    """A guarded move with ``held_at_start`` whose tool is pulled by ``pull`` [N] (world =
+    base here) from the start; the sensor reads the rest force minus the pull, with
+    Gaussian noise ``noise_N`` per channel. Returns the first result that is not running,
+    with the time it came."""
+    from suture_engine.runtime.monitor import BaseSensorTension
+
+    rng = np.random.default_rng(7)
+    q0 = np.array([0.1, -0.1, 0.2, 0.1])
+
+    def obs(t: float, q: np.ndarray, force: np.ndarray) -> Observation:
+        wrench = np.concatenate([force, np.zeros(3)])
+        ro = RobotObservation(q=q, qd=np.zeros(4), base_wrench=wrench, tool=ToolState())
+        return Observation(tick=round(t * 1e3), t=t, robots={ROBOT: ro}, scene=SceneGeometry())
+
+    def reading() -> np.ndarray:
+        return REST_FORCE - np.asarray(pull) + rng.normal(0.0, noise_N, 3)
+
+    rest = obs(0.0, q0, REST_FORCE)
+    skill = MoveTo(
+        {"robot": "arm", "target": (0.01, 0.0, 0.12), "speed": 0.005, "until_tension": 5.0,
+         "held_at_start": held_N}
+    )  # fmt: skip
+    ctx = SkillContext(
+        step="s", roles={"arm": ROBOT}, dt=1e-3, start=obs(0.0, q0, reading()), rest=rest
+    )
+    skill.start(ctx)
+    # the runtime's own estimate, tared at the same rest, unfiltered: the oracle
+    monitor = BaseSensorTension(dt=1e-3, cutoff_hz=math.inf)
+    monitor.tare(rest)
+    seen: list[float] = []
+    q = q0
+    for k in range(400):
+        t = k * 1e-3
+        o = obs(t, q, reading())
+        seen.append(monitor.estimate(o)[ROBOT])
+        res = skill.step(ctx, o)
+        q = np.array(res.command.robots[ROBOT].q)
+        if res.status is not SkillStatus.RUNNING:
+            return res, t, seen
+    return res, t, seen
+
+
+def test_held_at_start_fails_at_once_when_the_strand_is_slack() -> None:
+    """A 0.10 N pull (0.06, 0, 0.08) against a 0.12 N requirement: the move stops at the
+    end of the 50 ms window, held where it is, with ``slack-at-start``."""
+    res, t, _ = _held_run((0.06, 0.0, 0.08), 0.12)
+    assert res.status is SkillStatus.FAILURE and res.event == "slack-at-start"
+    assert t == pytest.approx(MoveTo.HELD_WINDOW_S, abs=1.5e-3)
+    assert "0.100 N" in res.message
+    assert res.command.robots[ROBOT].qd is None  # held, not driven on
+
+
+def test_held_at_start_lets_a_strand_that_pulls_go_on_as_without_it() -> None:
+    res, t, _ = _held_run((0.06, 0.0, 0.08), 0.09)
+    assert res.status is SkillStatus.RUNNING and t > 0.3  # still moving: the guard decides
+
+
+@pytest.mark.parametrize(("pull_N", "failed"), [(0.07, True), (0.13, False)])
+def test_held_at_start_reads_the_runs_own_estimate_through_sensor_noise(
+    pull_N: float, failed: bool
+) -> None:
+    """With the scene's 0.02 N sensor noise, the 50-sample mean decides 0.07 N (the
+    false claims' reading) and 0.13 N (the least square's) on the right side of 0.1 N.
+    What the skill read equals the runtime's estimate tared at rest, averaged the same."""
+    res, _, seen = _held_run((0.0, pull_N, 0.0), 0.1, noise_N=0.02)
+    assert (res.status is SkillStatus.FAILURE) is failed
+    window = round(MoveTo.HELD_WINDOW_S * 1e3) + 1
+    assert np.mean(seen[:window]) == pytest.approx(pull_N, abs=0.015)
+    if failed:
+        read = float(res.message.split(" with ")[1].split(" N")[0])
+        assert read == pytest.approx(pull_N, abs=0.01)
+
+
+def test_held_at_start_needs_the_runs_rest() -> None:
+    skill = MoveTo({"robot": "arm", "target": (0.01, 0.0, 0.12), "held_at_start": 0.1})
+    q0 = np.array([0.1, -0.1, 0.2, 0.1])
+    ctx = SkillContext(step="s", roles={"arm": ROBOT}, dt=1e-3, start=_obs(0.0, q0))
+    with pytest.raises(ValueError, match="rest"):
+        skill.start(ctx)
+
+
 def _free_of_run(other_N: float) -> tuple[str, float, str]:
     """The guarded move of ``guarded-free-of.yaml``: from 0.8 s a 1 N pull holds the
     stitcher back along -x and, as a strand anchored on the grasper would, ``other_N`` [N]
