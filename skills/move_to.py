@@ -278,7 +278,7 @@ class MoveTo(Skill):
     def _held_check(self, obs: Any, sample: Any) -> Any:
         """``held_at_start``: None while the window fills or once the strand was found
         pulling; the failure when it was not."""
-        np, Command, RobotCommand, SkillStatus, StepResult, _ = _step_imports()
+        np = _step_imports()[0]
         p = self.params
         assert isinstance(p, MoveToParams) and p.held_at_start is not None
         self._held.append(np.array(obs.robots[self._robot].base_wrench[:3], float))
@@ -288,14 +288,18 @@ class MoveTo(Skill):
         self._rest_force, self._held = None, []
         if pull >= p.held_at_start:
             return None
-        hold = Command({self._robot: RobotCommand.trusted_position(sample.q, None)})
-        return StepResult(
-            hold,
-            SkillStatus.FAILURE,
+        return self._stopped(
+            sample,
             f"the strand pulls on {p.robot}'s tool with {pull:.3f} N as the move begins, "
             f"under {p.held_at_start:.2f} N: nothing it holds is drawn against the knot",
             SLACK_AT_START,
         )
+
+    def _stopped(self, sample: Any, message: str, event: str) -> Any:
+        """A failure that holds the tool where the trajectory is now, at rest."""
+        _, Command, RobotCommand, SkillStatus, StepResult, _ = _step_imports()
+        hold = Command({self._robot: RobotCommand.trusted_position(sample.q, None)})
+        return StepResult(hold, SkillStatus.FAILURE, message, event)
 
     def step(self, ctx: Any, obs: Any) -> Any:
         """Track the trajectory; report success at the goal, failure if it is not reached.
@@ -350,16 +354,13 @@ class MoveTo(Skill):
                         "is anchored there",
                     )
                 return StepResult(hold, SkillStatus.SUCCESS)
-            if p.taut_within is not None:
-                if travel > p.taut_within:
-                    hold = Command({self._robot: RobotCommand.trusted_position(sample.q, None)})
-                    return StepResult(
-                        hold,
-                        SkillStatus.FAILURE,
-                        f"tension {p.until_tension:.2f} N not reached within "
-                        f"{p.taut_within * 1e3:.1f} mm of travel",
-                        NOT_TAUT,
-                    )
+            if p.taut_within is not None and travel > p.taut_within:
+                return self._stopped(
+                    sample,
+                    f"tension {p.until_tension:.2f} N not reached within "
+                    f"{p.taut_within * 1e3:.1f} mm of travel",
+                    NOT_TAUT,
+                )
         if not sample.done:
             return StepResult(command)
         tip = tool_tip_world(obs.robots[self._robot].q, self._base)
