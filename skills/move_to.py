@@ -91,7 +91,7 @@ class MoveToParams(SkillParams):
     """The strand must already pull on this robot's tool with at least this force as the
     move begins [N]: the run's own tension estimate (the base sensor's force against its
     reading at the run's rest, ``|f|`` of 7.6-7.9; not the step's tare), averaged over the
-    step's first :attr:`MoveTo.HELD_WINDOW_S`. Less, and the move stops there and fails
+    step's first 50 ms (``MoveTo.HELD_WINDOW_S``). Less, and the move stops there and fails
     (``slack-at-start``): nothing held by this tool is drawn against the knot. ``None``:
     no such check."""
 
