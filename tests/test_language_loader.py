@@ -210,7 +210,8 @@ def test_a_default_may_be_an_expression_over_the_parameters_before_it(tmp_path: 
     path = _defaults_file(
         tmp_path,
         "  register: {type: bool, default: '${algorithm == 3}'}\n"
-        "  gap: {type: quantity, unit: mm, default: '${2 mm if register else 5 mm}', max: 6 mm}\n",
+        "  gap: {type: quantity, unit: mm, default: '${2 mm if register else 5 mm}', max: 6 mm}\n"
+        "  tag: {type: str, default: 'alg-${algorithm}'}\n",
     )
     cases = [
         ({}, (False, 0.005)),
@@ -222,6 +223,7 @@ def test_a_default_may_be_an_expression_over_the_parameters_before_it(tmp_path: 
         params = load_procedure(path, params=given, allow_outside=True).params
         assert params["register"] is register, given
         assert params["gap"] == pytest.approx(gap), given
+        assert params["tag"] == f"alg-{given.get('algorithm', 2)}", given  # text around it
 
 
 @pytest.mark.parametrize(

@@ -357,7 +357,12 @@ def _show(value: Any) -> str:
 
 
 def _is_default_expression(raw: Any) -> bool:
-    return isinstance(raw, str) and raw.strip().startswith(_INTERP) and raw.strip().endswith("}")
+    return isinstance(raw, str) and _INTERP in raw
+
+
+def _mentions(text: str, name: str) -> bool:
+    """Whether ``text`` uses ``name`` as a top-level name (not as ``x.name`` or a part of one)."""
+    return re.search(rf"(?<![\w.]){re.escape(name)}(?!\w)", text) is not None
 
 
 def _default_from_expression(
@@ -368,19 +373,16 @@ def _default_from_expression(
     values: Mapping[str, Any],
     head: _Head,
 ) -> Any:
-    """A default written ``${...}``: evaluated over the parameters declared before it.
+    """A default written with ``${...}``: evaluated over the parameters declared before it.
 
-    A name declared later, or one whose own value was refused, makes a problem at the
-    default: the parameters resolve in the order they are written.
+    A name declared later makes a problem at the default: the parameters resolve in the
+    order they are written. One declared before whose value was refused (and reported)
+    leaves the default invalid, silently.
     """
-    inner = raw.strip()[len(_INTERP) : -1]
     order = list(head.params)
-    used = [k for k in order if re.search(rf"(?<![\w.]){re.escape(k)}(?!\w)", inner)]
-    here = order.index(name)
+    before = order[: order.index(name)]
     where: PathKey = ("params", name, "default")
-    later = [k for k in used if order.index(k) >= here]
-    if not later and any(k not in values for k in used):
-        return _INVALID  # an earlier parameter's value was refused, and reported
+    later = [k for k in order[len(before) :] if _mentions(raw, k)]
     if later:
         reason = (
             f"the default {raw!r} uses {later[0]!r}, which is not declared before it; "
@@ -388,11 +390,9 @@ def _default_from_expression(
         )
         ctx.problems.append(source.problem("bad-expression", reason, where))
         return _INVALID
-    try:
-        return evaluate(inner, {**values, "params": Namespace("params", dict(values))})
-    except ExpressionError as exc:
-        ctx.problems.append(source.problem("bad-expression", exc.message, where))
-        return _INVALID
+    names: dict[str, Any] = {k: values.get(k, _INVALID) for k in before}
+    names["params"] = Namespace("params", dict(values))
+    return _resolve(ctx, raw, source, where, names)
 
 
 def _resolve_params(
@@ -597,7 +597,7 @@ def _resolve(
     if not isinstance(value, str) or _INTERP not in value:
         return value
     invalid = [k for k, v in names.items() if isinstance(v, InvalidValue)]
-    if invalid and any(re.search(rf"(?<![\w.]){re.escape(k)}(?!\w)", value) for k in invalid):
+    if invalid and any(_mentions(value, k) for k in invalid):
         return _INVALID
     try:
         inner = find_expression(value)

@@ -75,9 +75,9 @@ class ParamSpec(_Model):
     unit: str | None = None
     """The unit that fixes a quantity's dimension."""
     default: Any = None
-    """Default value (a quantity is written with its unit), or a ``${...}`` expression
-    over the parameters declared before this one (``${algorithm == 3}``), evaluated
-    when the file loads; a value set for the parameter replaces it."""
+    """Default value (a quantity is written with its unit). It may use ``${...}`` over the
+    parameters declared before this one (``${algorithm == 3}``, ``alg-${algorithm}``),
+    evaluated when the file loads; a value set for the parameter replaces it."""
     min: Any = None
     """Inclusive lower bound."""
     max: Any = None
