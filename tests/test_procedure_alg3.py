@@ -1143,13 +1143,15 @@ def test_the_aligned_mirrored_tighten_stops_at_a_lower_guard() -> None:
         assert proc.states["tighten"].params.until_tension == pytest.approx(guard), params
 
 
-TIGHTEN_SQUARES_LEAST_N = 0.092
+TIGHTEN_SQUARES_LEAST_N = 0.071
 """Least reading of the check itself (the grasper's base force averaged over the tighten's
-first 50 ms, against the run's rest) on a square with the held end kept up: registered
-seed 0, which the former 0.1 N stopped (2026-12-06, later; docs/status.md) [N]."""
+first 50 ms, against the run's rest) on a square with the held end kept up: the issue's
+draw 2, registered with ``hand_up_first`` (registered seed 0 read 0.092 N and the former
+0.1 N stopped it; 2026-12-06, later; docs/status.md) [N]."""
 TIGHTEN_FALSE_CLAIMS_MOST_N = 0.041
 """Most reading of the check on the throws it stopped with no second knot: registered
-seeds 1 (0.027 N) and 2 (0.041 N), the issue's draw 11 registered (0.032 N) [N]."""
+seeds 1 (0.027 N), 2 (0.041 N) and 8 (0.037 N), the issue's draw 11 registered (0.032 N)
+[N]."""
 
 
 def test_the_kept_up_mirrored_tighten_needs_the_tail_already_pulling() -> None:
@@ -1164,7 +1166,7 @@ def test_the_kept_up_mirrored_tighten_needs_the_tail_already_pulling() -> None:
     kept = {"second": True, "mirror": True, "stitch": False, "align_mirror": True,
             "lift_end": True, "lower_end": False}  # fmt: skip
     cases = [
-        (kept, 0.065),
+        (kept, 0.055),
         ({**kept, "lower_end": True}, None),
         ({**kept, "lift_end": False, "lower_end": True}, None),
         ({**kept, "check_throw": False}, None),
