@@ -46,7 +46,8 @@ Usage::
         [--workers 2] [--out runs/knot-success] [--backend pybullet-surgical]
         [--base-seed 0] [--no-perturb] [--bending-stiffness EI] [--wound-gap MM]
         [--wound-depth MM] [--pad-clear-depth MM]
-        [--thread-contact-stiffness N_PER_M] [--smooth-joints] [--single] [--resume]
+        [--thread-contact-stiffness N_PER_M] [--smooth-joints] [--thread-damping PER_S]
+        [--single] [--resume]
         [--only base,friction,stiffness] [--base-part all|common|relative]
         [--set NAME=VALUE ...] [--runs 1,2,5-9]
 
@@ -720,6 +721,13 @@ def main(argv: Sequence[str]) -> int:
         "groove; default: tip to tip); give --resume only with the same choice",
     )
     ap.add_argument(
+        "--thread-damping",
+        type=float,
+        default=None,
+        help="how fast the thread's free motion dies away [1/s] (default: the scene's, "
+        "else 0.5); give --resume only with the same value",
+    )
+    ap.add_argument(
         "--runs",
         default=None,
         help="run only these runs of the --seeds draws, e.g. 1,2,5-9 (each keeps its own "
@@ -813,6 +821,13 @@ def main(argv: Sequence[str]) -> int:
         if "thread_smooth_joints" not in accepted:
             ap.error(f"--smooth-joints: backend {args.backend} takes no thread_smooth_joints")
         jobs = [j._replace(options={**j.options, "thread_smooth_joints": True}) for j in jobs]
+    damping = args.thread_damping
+    if damping is not None:
+        if "thread_damping" not in accepted:
+            ap.error(f"--thread-damping: backend {args.backend} takes no thread_damping")
+        if not damping >= 0:
+            ap.error(f"--thread-damping: a rate >= 0 [1/s], got {damping}")
+        jobs = [j._replace(options={**j.options, "thread_damping": damping}) for j in jobs]
     what = "knot-algorithm-N.yaml (one throw)" if args.single else "square-knot.yaml"
     if args.set:
         what += " --set " + " --set ".join(args.set)
@@ -826,6 +841,8 @@ def main(argv: Sequence[str]) -> int:
         what += f", thread contacts {stiffness:g} N/m"
     if args.smooth_joints:
         what += ", smooth joints"
+    if damping is not None:
+        what += f", thread damping {damping:g} /s"
     runs = f"{args.seeds} run(s)" if args.runs is None else f"runs {args.runs} of {args.seeds}"
     print(
         f"{what} on {args.backend}: {runs} per algorithm "

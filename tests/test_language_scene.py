@@ -93,6 +93,9 @@ def test_usp_zero_written_as_a_number() -> None:
         # the joints' shape: a YAML boolean, not a number or a word
         {"suture": {"usp": "2-0", "length": 0.3, "smooth_joints": 1}},
         {"suture": {"usp": "2-0", "length": 0.3, "smooth_joints": "yes"}},
+        # the thread's damping: a rate, not negative
+        {"suture": {"usp": "2-0", "length": 0.3, "damping": "-1 1/s"}},
+        {"suture": {"usp": "2-0", "length": 0.3, "damping": "5 N*s/m"}},
     ],
 )  # fmt: skip
 def test_bad_scenes_are_rejected(changes: dict[str, object]) -> None:
@@ -137,3 +140,10 @@ def test_the_threads_joints_are_grooves_unless_declared_smooth() -> None:
     assert Scene.model_validate(_scene()).suture.smooth_joints is False
     suture = {"usp": "2-0", "length": 0.3, "smooth_joints": True}
     assert Scene.model_validate(_scene(suture=suture)).suture.smooth_joints is True
+
+
+def test_the_threads_damping_is_a_rate_or_left_to_the_simulator() -> None:
+    assert Scene.model_validate(_scene()).suture.damping is None
+    for given, rate in (("20 1/s", 20.0), ("20 Hz", 20.0), (5, 5.0)):
+        suture = {"usp": "2-0", "length": 0.3, "damping": given}
+        assert Scene.model_validate(_scene(suture=suture)).suture.damping == pytest.approx(rate)

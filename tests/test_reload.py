@@ -447,6 +447,36 @@ def test_smooth_joints_reach_every_thread_from_the_scene_or_the_option_which_win
         be.close()
 
 
+@pytest.mark.parametrize(
+    ("declared", "option", "rate"),
+    [(None, None, 0.5), (None, 20.0, 20.0), (5.0, None, 5.0), (5.0, 20.0, 20.0)],
+)
+def test_the_threads_damping_reaches_every_thread_from_the_scene_or_the_option_which_wins(
+    model, declared: float | None, option: float | None, rate: float
+) -> None:  # type: ignore[no-untyped-def]
+    """The thread built and the thread reloaded after a cut, its capsules and its needle,
+    get the scene's ``suture.damping``, or the backend's ``thread_damping`` over it, or
+    the thread's default."""
+    suture = model.suture.model_copy(update={"damping": declared})
+    scene = model.model_copy(update={"suture": suture})
+    be = StitchedSurgicalPyBulletBackend(thread_damping=option)
+    try:
+        be.reset(scene, 0)
+        params = be.scene.suture.params
+        assert (params.linear_damping, params.angular_damping) == (rate, rate)
+        be.cut_suture()
+        be.load_suture("entry_1", "exit_1")
+        params = be.scene.suture.params
+        assert (params.linear_damping, params.angular_damping) == (rate, rate)
+    finally:
+        be.close()
+
+
+def test_the_backend_refuses_a_negative_damping() -> None:
+    with pytest.raises(BackendError, match="thread_damping"):
+        StitchedSurgicalPyBulletBackend(thread_damping=-1.0)
+
+
 def test_the_backend_refuses_a_joint_shape_that_is_not_a_boolean() -> None:
     with pytest.raises(BackendError, match="thread_smooth_joints"):
         StitchedSurgicalPyBulletBackend(thread_smooth_joints="yes")  # type: ignore[arg-type]

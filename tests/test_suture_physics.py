@@ -14,7 +14,14 @@ import numpy as np
 import pytest
 
 from backends.pybullet.scene import build_scene, pull_ends
-from backends.pybullet.suture import InvalidSutureParams, Suture, SutureParams, knotted_path
+from backends.pybullet.suture import (
+    InvalidSutureParams,
+    Suture,
+    SutureParams,
+    configure_physics,
+    knotted_path,
+    straight_path,
+)
 from backends.pybullet.tools import (
     HOOK_MOUTH,
     BentTipGrasper,
@@ -213,8 +220,6 @@ def test_a_hung_thread_is_most_taut_at_its_top_joint_and_carries_the_weight_belo
     carries the weight of the capsules below it (statics: k m g), so the largest tension
     acts at the top joint; the joint named is the centerline's highest inner point."""
     import pybullet as p
-
-    from backends.pybullet.suture import Suture, configure_physics, straight_path
 
     n = 20
     prm = SutureParams(length=0.07, n_segments=n, needle=False)
@@ -1064,3 +1069,128 @@ def _bent_release(at_once: bool) -> tuple[float, bool, bool, bool]:
         return peak, inside, waiting, not overlaps and on
     finally:
         p.disconnect(physicsClientId=c)
+
+
+def test_the_threads_damping_follows_the_law_its_parameters_state() -> None:
+    """A 3-capsule thread coasting in zero gravity (no joint force: every capsule moves
+    alike) slows as ``SutureParams.linear_damping`` says: dv/dt = -k v (1 + |v|), whose
+    solution is v(t) = 1 / ((1 + v0) / v0 * exp(k t) - 1). Oracle: that closed form."""
+    import pybullet as p
+
+    v0, t = 0.1, 0.2
+    for k in (0.5, 5.0, 20.0):
+        c = p.connect(p.DIRECT)
+        try:
+            p.setGravity(0, 0, 0, physicsClientId=c)
+            p.setPhysicsEngineParameter(fixedTimeStep=1e-3, physicsClientId=c)
+            prm = SutureParams(length=0.0225, n_segments=3, needle=False, linear_damping=k)
+            sut = Suture.create(c, straight_path((0, 0, 0), (0, 1, 0), prm.length), prm)
+            for body in sut.bodies:
+                p.resetBaseVelocity(body, [v0, 0, 0], [0, 0, 0], physicsClientId=c)
+            for _ in range(round(t * 1e3)):
+                p.stepSimulation(physicsClientId=c)
+            speeds = [p.getBaseVelocity(b, physicsClientId=c)[0][0] for b in sut.bodies]
+        finally:
+            p.disconnect(physicsClientId=c)
+        expected = 1.0 / ((1.0 + v0) / v0 * math.exp(k * t) - 1.0)
+        # The engine integrates in 1 ms steps: at k = 20 /s its exponential is 4 % short.
+        assert speeds == pytest.approx([expected] * 3, rel=0.05), k
+
+
+def _released_knot_travel(damping: float, throws: tuple[bool, ...]) -> tuple[float, float]:
+    """A rest test: a knot laid on a flat plate is pulled by its two end capsules to 1 N,
+    held 0.5 s and let go. Returns how far any joint of the thread then moves in 2 s [m]
+    (ground truth), and how far a straight thread so pulled springs back: the chain's own
+    stretch, which no knot can undo."""
+    import pybullet as p
+
+    def one(knot: tuple[bool, ...] | None) -> float:
+        c = p.connect(p.DIRECT)
+        try:
+            configure_physics(c)
+            box = p.createCollisionShape(
+                p.GEOM_BOX, halfExtents=[0.25, 0.25, 0.01], physicsClientId=c
+            )
+            plate = p.createMultiBody(0, box, -1, [0, 0, -0.01], physicsClientId=c)
+            p.changeDynamics(plate, -1, lateralFriction=0.5, physicsClientId=c)
+            prm = SutureParams(needle=False, linear_damping=damping, angular_damping=damping)
+            lift = prm.collision_radius + 0.0025
+            if knot is None:
+                path = straight_path((-0.15, 0, prm.collision_radius), (1, 0, 0), prm.length)
+            else:
+                path = knotted_path(knot, (0, 0, lift), 0.0025, length=prm.length)
+            sut = Suture.create(c, path, prm)
+
+            def step(n: int) -> None:
+                for _ in range(n):
+                    sut.pre_step()
+                    p.stepSimulation(physicsClientId=c)
+                    sut.stepped()
+
+            step(1500)  # settle on the plate
+            half = prm.segment_length / 2
+            grips = []
+            for body, local, out in ((sut.bodies[0], -half, -1.0), (sut.bodies[-1], half, 1.0)):
+                pos, orn = p.getBasePositionAndOrientation(body, physicsClientId=c)
+                at = np.array(p.multiplyTransforms(pos, orn, [0, 0, local], [0, 0, 0, 1])[0])
+                cid = p.createConstraint(
+                    body, -1, -1, -1, p.JOINT_POINT2POINT, [0, 0, 0], [0, 0, local],
+                    at.tolist(), physicsClientId=c,
+                )  # fmt: skip
+                grips.append((cid, at, out))
+            held = 0
+            for _ in range(10_000):
+                force = np.mean(
+                    [np.linalg.norm(p.getConstraintState(g[0], physicsClientId=c)) for g in grips]
+                )
+                if held or force >= 1.0:
+                    held += 1
+                    if held > 500:
+                        break
+                else:
+                    speed = 0.02 if force < 0.3 else 0.004  # [m/s], slower once taut
+                    for cid, at, out in grips:
+                        at[0] += out * speed * 1e-3
+                        p.changeConstraint(cid, at.tolist(), maxForce=50, physicsClientId=c)
+                step(1)
+            assert held > 500, "the pull never reached 1 N"
+            before = sut.centerline().copy()
+            for cid, _, _ in grips:
+                p.removeConstraint(cid, physicsClientId=c)
+            travel = 0.0
+            for _ in range(20):
+                step(100)
+                moved = np.linalg.norm(sut.centerline() - before, axis=1).max()
+                travel = max(travel, float(moved))
+            if knot is not None:
+                assert _classify(sut.centerline()).type.startswith(
+                    "trefoil" if len(knot) == 1 else "square"
+                )
+            return travel
+        finally:
+            p.disconnect(physicsClientId=c)
+
+    return one(throws), one(None)
+
+
+@pytest.mark.parametrize("throws", [(False,), (False, True)], ids=["overhand", "square"])
+def test_a_knot_pulled_taut_and_let_go_stays_put_when_the_thread_is_damped(
+    throws: tuple[bool, ...],
+) -> None:
+    """The rest test. At a damping rate of 20 /s the released knot's thread moves at most
+    5 mm in 2 s (measured: 3.1 mm overhand, 3.6 mm square), a few times the 0.75 mm a
+    straight thread springs back from 1 N by its chain's own stretch, and stays tied."""
+    knot, straight = _released_knot_travel(20.0, throws)
+    assert straight < 1.5e-3
+    assert knot < 5e-3
+
+
+@pytest.mark.xfail(
+    strict=True,
+    reason="at the default damping (0.5 /s) the mass-scaled thread coasts on the energy "
+    "its stretch gives back: a released knot flings its ends about 0.12 m (issue 6)",
+)
+def test_a_knot_pulled_taut_and_let_go_stays_put_at_the_default_damping() -> None:
+    """The same rest test at the thread's default damping, which fails it."""
+    knot, _ = _released_knot_travel(SutureParams().linear_damping, (False,))
+    assert knot < 5e-3

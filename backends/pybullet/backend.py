@@ -176,6 +176,9 @@ class PyBulletBackend:
             :class:`backends.pybullet.suture.SutureParams`' ``smooth_joints``); None, the
             default: the scene's ``suture.smooth_joints`` (false in every bundled scene:
             the capsules meet tip to tip, with a groove at each joint).
+        thread_damping: how fast the thread's free motion dies away [1/s] (surgical
+            scene; the scene's ``suture.damping``, which it overrides; None, the default:
+            the scene's, else 0.5 /s).
     """
 
     name = "pybullet"
@@ -210,6 +213,7 @@ class PyBulletBackend:
         thread_contact_stiffness: float | None = None,
         thread_contact_damping: float = CONTACT_DAMPING,
         thread_smooth_joints: bool | None = None,
+        thread_damping: float | None = None,
     ) -> None:
         self.gui = gui
         self.dt = dt
@@ -259,6 +263,11 @@ class PyBulletBackend:
                 f"thread_smooth_joints must be true or false, got {thread_smooth_joints!r}",
             )
         self.thread_smooth_joints = thread_smooth_joints
+        if thread_damping is not None and not thread_damping >= 0.0:
+            raise BackendError(
+                self.name, f"thread_damping must be >= 0 [1/s], got {thread_damping}"
+            )
+        self.thread_damping = thread_damping
         self.scene: Any = None
         """The :class:`backends.pybullet.scene.Scene` when the surgical scene is built."""
         self._scene_model: Any = None
@@ -890,13 +899,18 @@ class PyBulletBackend:
         return float(stiffness), float(suture.contact_damping)
 
     def _thread_options(self, scene: Any) -> Any:
-        """The scene model with the backend's ``thread_smooth_joints`` in its suture, when
-        given (the thread is built from the model, and every reloaded one with it)."""
+        """The scene model with the backend's ``thread_smooth_joints`` and
+        ``thread_damping`` in its suture, when given (the thread is built from the model,
+        and every reloaded one with it)."""
         suture = getattr(scene, "suture", None)
-        if self.thread_smooth_joints is None or suture is None:
+        update: dict[str, Any] = {}
+        if self.thread_smooth_joints is not None:
+            update["smooth_joints"] = self.thread_smooth_joints
+        if self.thread_damping is not None:
+            update["damping"] = float(self.thread_damping)
+        if not update or suture is None:
             return scene
-        smooth = suture.model_copy(update={"smooth_joints": self.thread_smooth_joints})
-        return scene.model_copy(update={"suture": smooth})
+        return scene.model_copy(update={"suture": suture.model_copy(update=update)})
 
     def _wound(self) -> dict[str, float]:
         """The ``wound_gap`` and ``wound_depth`` keywords for the scene's pads, as given: the

@@ -568,13 +568,18 @@ def _tail_out(entry: Any, exit_: Any, normal: Any) -> Any:
 
 
 def suture_params(model: Any, bending_stiffness: float) -> SutureParams:
-    """The simulated thread of a scene model (at least 40 capsules)."""
+    """The simulated thread of a scene model (at least 40 capsules), damped at the scene's
+    ``suture.damping`` when it declares one."""
+    damping = model.suture.damping
+    rate = SutureParams.linear_damping if damping is None else float(damping)
     return SutureParams(
         length=float(model.suture.length),
         n_segments=max(40, round(model.suture.length / (model.suture.segment or 7.5e-3))),
         diameter=float(model.suture.diameter),
         bending_stiffness=bending_stiffness,
         smooth_joints=model.suture.smooth_joints,
+        linear_damping=rate,
+        angular_damping=rate,
     )
 
 

@@ -146,8 +146,12 @@ class SutureParams:
             beyond it is cancelled in :meth:`Suture.pre_step`.
         inertia_scale: factor on each capsule's rotational inertia [-].
         friction: Coulomb friction coefficient of thread on thread and on tools [-].
-        linear_damping: PyBullet linear damping of each capsule [-].
-        angular_damping: PyBullet angular damping of each capsule [-].
+        linear_damping: each capsule's (and the needle's) damping rate [1/s]: PyBullet
+            slows a body with no links by its mass times this rate times
+            ``(1 + |v|)`` times its velocity ``v`` [m/s], so slow motion dies away as
+            ``exp(-rate * t)``. The default 0.5 /s lets a released knot coast (the
+            scene's ``suture.damping``).
+        angular_damping: the same for spin [1/s], on the rotational inertia.
         max_link_force: largest force a joint between capsules may apply [N].
         needle: whether to attach a needle body to the last capsule.
         needle_radius: radius of the curved (half-circle) needle [m].

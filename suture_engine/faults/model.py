@@ -32,13 +32,13 @@ Kinds, with the unit of ``value``:
 from __future__ import annotations
 
 import math
-from typing import Annotated, Any, Literal, get_args
+from typing import Any, Literal, get_args
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationInfo, field_validator, model_validator
 
 from suture_engine.language.units import (
     Duration,
-    Unit,
+    Rate,
     UnitError,
     dimension_name,
     parse_quantity,
@@ -81,9 +81,6 @@ Sensor = Literal["ft", "encoders"]
 Joint = Literal["yaw", "pitch", "roll", "insertion"]
 JOINTS: tuple[str, ...] = get_args(Joint)
 """Joint names, in the order of q (q1 yaw .. q4 insertion)."""
-
-Rate = Annotated[float, Unit("1/s")]
-"""A rate [1/s]."""
 
 
 def _is_number(text: str) -> bool:

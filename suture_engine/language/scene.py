@@ -21,7 +21,16 @@ from pydantic import (
 )
 
 from suture_engine.faults.model import Fault
-from suture_engine.language.units import Angle, Damping, Duration, Force, Length, Mass, Position
+from suture_engine.language.units import (
+    Angle,
+    Damping,
+    Duration,
+    Force,
+    Length,
+    Mass,
+    Position,
+    Rate,
+)
 from suture_engine.language.units import Stiffness as StiffnessUnit
 
 __all__ = [
@@ -239,6 +248,13 @@ class Suture(_Model):
     rounded ends on its joints, so the chain's surface is a round tube through every joint.
     ``false``: the capsules meet tip to tip, and each joint is a groove as deep as the
     capsule's radius, in which a crossing strand can wedge the joint open."""
+    damping: Rate | None = Field(default=None, ge=0.0)
+    """Simulators that give the thread more mass than the real one (to keep a chain of
+    capsules stable): how fast its free motion dies away [1/s]. Each capsule is slowed by
+    its simulated mass times this rate times its speed (and its spin likewise). The real
+    thread is so light that the pad's friction stops it almost at once; a heavier one
+    slowed too little coasts on the energy its stretch gives back, and a knot pulled taut
+    and let go flings its ends apart. ``None``: 0.5 /s."""
 
     @field_validator("usp", mode="before")
     @classmethod

@@ -37,6 +37,7 @@ __all__ = [
     "Mass",
     "Position",
     "Quantity",
+    "Rate",
     "Speed",
     "Stiffness",
     "Unit",
@@ -326,5 +327,7 @@ Stiffness = Annotated[float, Unit("N/m")]
 """A stiffness [N/m]."""
 Damping = Annotated[float, Unit("N*s/m")]
 """A damping [N*s/m]."""
+Rate = Annotated[float, Unit("1/s")]
+"""A rate [1/s]."""
 Position = Annotated[tuple[float, float, float], Unit("m")]
 """A point (x, y, z) [m]."""
