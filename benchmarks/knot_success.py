@@ -47,7 +47,7 @@ Usage::
         [--base-seed 0] [--no-perturb] [--bending-stiffness EI] [--wound-gap MM]
         [--wound-depth MM] [--pad-clear-depth MM]
         [--thread-contact-stiffness N_PER_M] [--smooth-joints] [--thread-damping PER_S]
-        [--single] [--resume]
+        [--thread-weight G_PER_M] [--single] [--resume]
         [--only base,friction,stiffness] [--base-part all|common|relative]
         [--set NAME=VALUE ...] [--runs 1,2,5-9]
 
@@ -728,6 +728,13 @@ def main(argv: Sequence[str]) -> int:
         "else 0.5); give --resume only with the same value",
     )
     ap.add_argument(
+        "--thread-weight",
+        type=float,
+        default=None,
+        help="the mass per length whose weight the thread keeps [g/m] (default: the "
+        "scene's, else 0.1); give --resume only with the same value",
+    )
+    ap.add_argument(
         "--runs",
         default=None,
         help="run only these runs of the --seeds draws, e.g. 1,2,5-9 (each keeps its own "
@@ -828,6 +835,13 @@ def main(argv: Sequence[str]) -> int:
         if not damping >= 0:
             ap.error(f"--thread-damping: a rate >= 0 [1/s], got {damping}")
         jobs = [j._replace(options={**j.options, "thread_damping": damping}) for j in jobs]
+    weight = args.thread_weight
+    if weight is not None:
+        if "thread_weight" not in accepted:
+            ap.error(f"--thread-weight: backend {args.backend} takes no thread_weight")
+        if not weight > 0:
+            ap.error(f"--thread-weight: a mass per length > 0 [g/m], got {weight}")
+        jobs = [j._replace(options={**j.options, "thread_weight": weight * 1e-3}) for j in jobs]
     what = "knot-algorithm-N.yaml (one throw)" if args.single else "square-knot.yaml"
     if args.set:
         what += " --set " + " --set ".join(args.set)
@@ -843,6 +857,8 @@ def main(argv: Sequence[str]) -> int:
         what += ", smooth joints"
     if damping is not None:
         what += f", thread damping {damping:g} /s"
+    if weight is not None:
+        what += f", thread weight {weight:g} g/m"
     runs = f"{args.seeds} run(s)" if args.runs is None else f"runs {args.runs} of {args.seeds}"
     print(
         f"{what} on {args.backend}: {runs} per algorithm "

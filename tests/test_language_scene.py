@@ -96,6 +96,9 @@ def test_usp_zero_written_as_a_number() -> None:
         # the thread's damping: a rate, not negative
         {"suture": {"usp": "2-0", "length": 0.3, "damping": "-1 1/s"}},
         {"suture": {"usp": "2-0", "length": 0.3, "damping": "5 N*s/m"}},
+        # the weight it keeps: a positive mass per length
+        {"suture": {"usp": "2-0", "length": 0.3, "weight": 0}},
+        {"suture": {"usp": "2-0", "length": 0.3, "weight": "4 g"}},
     ],
 )  # fmt: skip
 def test_bad_scenes_are_rejected(changes: dict[str, object]) -> None:
@@ -147,3 +150,9 @@ def test_the_threads_damping_is_a_rate_or_left_to_the_simulator() -> None:
     for given, rate in (("20 1/s", 20.0), ("20 Hz", 20.0), (5, 5.0)):
         suture = {"usp": "2-0", "length": 0.3, "damping": given}
         assert Scene.model_validate(_scene(suture=suture)).suture.damping == pytest.approx(rate)
+
+
+def test_the_threads_weight_is_a_mass_per_length_or_left_to_the_simulator() -> None:
+    assert Scene.model_validate(_scene()).suture.weight is None
+    suture = {"usp": "2-0", "length": 0.3, "weight": "4 g/m"}
+    assert Scene.model_validate(_scene(suture=suture)).suture.weight == pytest.approx(4e-3)

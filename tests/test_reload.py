@@ -448,33 +448,45 @@ def test_smooth_joints_reach_every_thread_from_the_scene_or_the_option_which_win
 
 
 @pytest.mark.parametrize(
-    ("declared", "option", "rate"),
-    [(None, None, 0.5), (None, 20.0, 20.0), (5.0, None, 5.0), (5.0, 20.0, 20.0)],
+    ("declared", "option", "expected"),
+    [
+        ((None, None), (None, None), (0.5, 1e-4)),
+        ((None, None), (20.0, 4e-3), (20.0, 4e-3)),
+        ((5.0, 2e-3), (None, None), (5.0, 2e-3)),
+        ((5.0, 2e-3), (20.0, 4e-3), (20.0, 4e-3)),
+    ],
 )
-def test_the_threads_damping_reaches_every_thread_from_the_scene_or_the_option_which_wins(
-    model, declared: float | None, option: float | None, rate: float
+def test_the_threads_damping_and_weight_reach_every_thread_from_the_scene_or_the_option(
+    model,
+    declared: tuple[float | None, float | None],
+    option: tuple[float | None, float | None],
+    expected: tuple[float, float],
 ) -> None:  # type: ignore[no-untyped-def]
-    """The thread built and the thread reloaded after a cut, its capsules and its needle,
-    get the scene's ``suture.damping``, or the backend's ``thread_damping`` over it, or
-    the thread's default."""
-    suture = model.suture.model_copy(update={"damping": declared})
-    scene = model.model_copy(update={"suture": suture})
-    be = StitchedSurgicalPyBulletBackend(thread_damping=option)
+    """The thread built and the thread reloaded after a cut get the scene's
+    ``suture.damping`` and ``suture.weight``, or the backend's ``thread_damping`` and
+    ``thread_weight`` over them, or the thread's defaults."""
+    update = {"damping": declared[0], "weight": declared[1]}
+    scene = model.model_copy(update={"suture": model.suture.model_copy(update=update)})
+    be = StitchedSurgicalPyBulletBackend(thread_damping=option[0], thread_weight=option[1])
+    rate, weight = expected
     try:
         be.reset(scene, 0)
-        params = be.scene.suture.params
-        assert (params.linear_damping, params.angular_damping) == (rate, rate)
-        be.cut_suture()
-        be.load_suture("entry_1", "exit_1")
-        params = be.scene.suture.params
-        assert (params.linear_damping, params.angular_damping) == (rate, rate)
+        for reload in (False, True):
+            if reload:
+                be.cut_suture()
+                be.load_suture("entry_1", "exit_1")
+            params = be.scene.suture.params
+            assert (params.linear_damping, params.angular_damping) == (rate, rate)
+            assert params.real_mass_per_length == weight
     finally:
         be.close()
 
 
-def test_the_backend_refuses_a_negative_damping() -> None:
+def test_the_backend_refuses_a_negative_damping_or_a_weight_not_positive() -> None:
     with pytest.raises(BackendError, match="thread_damping"):
         StitchedSurgicalPyBulletBackend(thread_damping=-1.0)
+    with pytest.raises(BackendError, match="thread_weight"):
+        StitchedSurgicalPyBulletBackend(thread_weight=0.0)
 
 
 def test_the_backend_refuses_a_joint_shape_that_is_not_a_boolean() -> None:

@@ -1095,3 +1095,31 @@ def test_the_threads_damping_follows_the_law_its_parameters_state() -> None:
         expected = 1.0 / ((1.0 + v0) / v0 * math.exp(k * t) - 1.0)
         # The engine integrates in 1 ms steps: at k = 20 /s its exponential is 4 % short.
         assert speeds == pytest.approx([expected] * 3, rel=0.05), k
+
+
+@pytest.mark.parametrize(("damping", "weight"), [(0.5, 1e-4), (20.0, 4e-3)])
+def test_a_damped_thread_falls_at_its_kept_weight_over_its_damping(
+    damping: float, weight: float
+) -> None:
+    """A straight thread dropped in the air: its weight beyond ``real_mass_per_length`` is
+    cancelled, so it falls as a body of its simulated mass m pulled by the kept weight
+    w g and slowed by m k v (1 + v): from rest, v(t) solves m dv/dt = w g - m k v (1 + v).
+    Oracle: that ODE, integrated by scipy, against the capsules' mean speed after 1 s."""
+    import pybullet as p
+    from scipy.integrate import solve_ivp
+
+    prm = SutureParams(needle=False, linear_damping=damping, real_mass_per_length=weight)
+    pull = weight * prm.segment_length * 9.81 / prm.segment_mass  # [m/s^2]
+    ode = solve_ivp(lambda _t, v: pull - damping * v * (1 + abs(v)), (0, 1), [0.0], rtol=1e-9)
+    c = p.connect(p.DIRECT)
+    try:
+        configure_physics(c)
+        sut = Suture.create(c, straight_path((-0.15, 0, 0.5), (1, 0, 0), prm.length), prm)
+        for _ in range(1000):
+            sut.pre_step()
+            p.stepSimulation(physicsClientId=c)
+            sut.stepped()
+        speed = -np.mean([p.getBaseVelocity(b, physicsClientId=c)[0][2] for b in sut.bodies])
+    finally:
+        p.disconnect(physicsClientId=c)
+    assert speed == pytest.approx(float(ode.y[0, -1]), rel=0.03)

@@ -179,6 +179,9 @@ class PyBulletBackend:
         thread_damping: how fast the thread's free motion dies away [1/s] (surgical
             scene; the scene's ``suture.damping``, which it overrides; None, the default:
             the scene's, else 0.5 /s).
+        thread_weight: the mass per length whose weight the thread keeps [kg/m]
+            (surgical scene; overrides the scene's ``suture.weight``; None, the default:
+            the scene's, else 0.1 g/m).
     """
 
     name = "pybullet"
@@ -214,6 +217,7 @@ class PyBulletBackend:
         thread_contact_damping: float = CONTACT_DAMPING,
         thread_smooth_joints: bool | None = None,
         thread_damping: float | None = None,
+        thread_weight: float | None = None,
     ) -> None:
         self.gui = gui
         self.dt = dt
@@ -268,6 +272,9 @@ class PyBulletBackend:
                 self.name, f"thread_damping must be >= 0 [1/s], got {thread_damping}"
             )
         self.thread_damping = thread_damping
+        if thread_weight is not None and not thread_weight > 0.0:
+            raise BackendError(self.name, f"thread_weight must be > 0 [kg/m], got {thread_weight}")
+        self.thread_weight = thread_weight
         self.scene: Any = None
         """The :class:`backends.pybullet.scene.Scene` when the surgical scene is built."""
         self._scene_model: Any = None
@@ -899,15 +906,17 @@ class PyBulletBackend:
         return float(stiffness), float(suture.contact_damping)
 
     def _thread_options(self, scene: Any) -> Any:
-        """The scene model with the backend's ``thread_smooth_joints`` and
-        ``thread_damping`` in its suture, when given (the thread is built from the model,
-        and every reloaded one with it)."""
+        """The scene model with the backend's ``thread_smooth_joints``,
+        ``thread_damping`` and ``thread_weight`` in its suture, when given (the thread is
+        built from the model, and every reloaded one with it)."""
         suture = getattr(scene, "suture", None)
         update: dict[str, Any] = {}
         if self.thread_smooth_joints is not None:
             update["smooth_joints"] = self.thread_smooth_joints
         if self.thread_damping is not None:
             update["damping"] = float(self.thread_damping)
+        if self.thread_weight is not None:
+            update["weight"] = float(self.thread_weight)
         if not update or suture is None:
             return scene
         return scene.model_copy(update={"suture": suture.model_copy(update=update)})

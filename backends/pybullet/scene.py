@@ -569,9 +569,11 @@ def _tail_out(entry: Any, exit_: Any, normal: Any) -> Any:
 
 def suture_params(model: Any, bending_stiffness: float) -> SutureParams:
     """The simulated thread of a scene model (at least 40 capsules), damped at the scene's
-    ``suture.damping`` when it declares one."""
-    damping = model.suture.damping
+    ``suture.damping`` and keeping the weight of its ``suture.weight`` when it declares
+    them."""
+    damping, weight = model.suture.damping, model.suture.weight
     rate = SutureParams.linear_damping if damping is None else float(damping)
+    kept = SutureParams.real_mass_per_length if weight is None else float(weight)
     return SutureParams(
         length=float(model.suture.length),
         n_segments=max(40, round(model.suture.length / (model.suture.segment or 7.5e-3))),
@@ -580,6 +582,7 @@ def suture_params(model: Any, bending_stiffness: float) -> SutureParams:
         smooth_joints=model.suture.smooth_joints,
         linear_damping=rate,
         angular_damping=rate,
+        real_mass_per_length=kept,
     )
 
 

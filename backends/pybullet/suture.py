@@ -142,7 +142,8 @@ class SutureParams:
             simulated.
         collision_radius: capsule contact radius [m], larger than ``diameter / 2``.
         segment_mass: simulated mass of one capsule [kg] (mass-scaled, see module doc).
-        real_mass_per_length: mass of the real thread per length [kg/m]; the weight
+        real_mass_per_length: the mass per length whose weight the thread keeps [kg/m]
+            (the real thread's by default; a scene's ``suture.weight``); the weight
             beyond it is cancelled in :meth:`Suture.pre_step`.
         inertia_scale: factor on each capsule's rotational inertia [-].
         friction: Coulomb friction coefficient of thread on thread and on tools [-].

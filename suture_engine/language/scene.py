@@ -27,6 +27,7 @@ from suture_engine.language.units import (
     Duration,
     Force,
     Length,
+    LinearDensity,
     Mass,
     Position,
     Rate,
@@ -255,6 +256,13 @@ class Suture(_Model):
     thread is so light that the pad's friction stops it almost at once; a heavier one
     slowed too little coasts on the energy its stretch gives back, and a knot pulled taut
     and let go flings its ends apart. ``None``: 0.5 /s."""
+    weight: LinearDensity | None = Field(default=None, gt=0.0)
+    """Simulators that give the thread more mass than the real one: the mass per length
+    whose weight it keeps [kg/m]; the rest of its weight is cancelled, so that the tools
+    carry about the real thread's. A thread damped at ``damping`` falls at most at
+    ``g * weight / (simulated mass per length * damping)``: a heavier weight lets a
+    well-damped thread still fall off a tool's open jaws. ``None``: 0.1 g/m, about the
+    real 2-0 thread's."""
 
     @field_validator("usp", mode="before")
     @classmethod

@@ -34,6 +34,7 @@ __all__ = [
     "Duration",
     "Force",
     "Length",
+    "LinearDensity",
     "Mass",
     "Position",
     "Quantity",
@@ -329,5 +330,7 @@ Damping = Annotated[float, Unit("N*s/m")]
 """A damping [N*s/m]."""
 Rate = Annotated[float, Unit("1/s")]
 """A rate [1/s]."""
+LinearDensity = Annotated[float, Unit("kg/m")]
+"""A mass per length [kg/m]."""
 Position = Annotated[tuple[float, float, float], Unit("m")]
 """A point (x, y, z) [m]."""
