@@ -414,6 +414,10 @@ def test_where_the_true_peak_was_reached_is_read_from_the_summary(tmp_path: Path
         ["--thread-contact-stiffness", "0"],
         ["--thread-contact-stiffness", "1e4", "--backend", "ideal"],
         ["--smooth-joints", "--backend", "ideal"],
+        ["--thread-damping", "-1"],
+        ["--thread-damping", "20", "--backend", "ideal"],
+        ["--thread-weight", "0"],
+        ["--thread-weight", "4", "--backend", "ideal"],
     ],
 )
 def test_command_line_refuses_a_wound_gap_it_cannot_give(bad: list[str]) -> None:
@@ -468,3 +472,42 @@ def test_a_base_error_as_calibration_leaves_the_robots_where_declared() -> None:
         ks.main(["--algorithms", "3", "--seeds", "1", "--base-error-as", "calibration",
                  "--no-perturb"])  # fmt: skip
     assert err.value.code == 2
+
+
+def test_the_threads_damping_and_weight_reach_every_job(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """``--thread-damping`` [1/s] and ``--thread-weight`` [g/m] become every job's backend
+    options ``thread_damping`` [1/s] and ``thread_weight`` [kg/m]; no flag, no option."""
+    from concurrent.futures import Future
+
+    submitted: list[Any] = []
+
+    class Recorder:
+        def __init__(self, *_args: object, **_kwargs: object) -> None:
+            pass
+
+        def __enter__(self) -> Recorder:
+            return self
+
+        def __exit__(self, *_args: object) -> None:
+            pass
+
+        def submit(self, _fn: object, job: Any) -> Future[Any]:
+            submitted.append(job)
+            done: Future[Any] = Future()
+            done.set_result(_row(3, True))
+            return done
+
+    monkeypatch.setattr(ks, "ProcessPoolExecutor", Recorder)
+    base = ["--algorithms", "3", "--seeds", "2", "--backend", "pybullet-surgical-stitched"]
+    ks.main([*base, "--out", str(tmp_path / "a"), "--thread-damping", "20", "--thread-weight", "4"])
+    assert len(submitted) == 2
+    for job in submitted:
+        assert job.options["thread_damping"] == 20.0
+        assert job.options["thread_weight"] == pytest.approx(4e-3)
+    submitted.clear()
+    ks.main([*base, "--out", str(tmp_path / "b")])
+    assert submitted and all(
+        "thread_damping" not in j.options and "thread_weight" not in j.options for j in submitted
+    )
