@@ -812,36 +812,28 @@ def main(argv: Sequence[str]) -> int:
             bound = "> 0" if key == "wound_depth" else ">= 0"
             ap.error(f"{flag}: a length {bound} [mm], got {mm}")
         jobs = [j._replace(options={**j.options, key: mm * 1e-3}) for j in jobs]
-    stiffness = args.thread_contact_stiffness
-    if stiffness is not None:
-        if "thread_contact_stiffness" not in accepted:
-            ap.error(
-                f"--thread-contact-stiffness: backend {args.backend} takes no "
-                "thread_contact_stiffness"
-            )
-        if not stiffness > 0:
-            ap.error(f"--thread-contact-stiffness: a stiffness > 0 [N/m], got {stiffness}")
-        jobs = [
-            j._replace(options={**j.options, "thread_contact_stiffness": stiffness}) for j in jobs
-        ]
-    if args.smooth_joints:
-        if "thread_smooth_joints" not in accepted:
-            ap.error(f"--smooth-joints: backend {args.backend} takes no thread_smooth_joints")
-        jobs = [j._replace(options={**j.options, "thread_smooth_joints": True}) for j in jobs]
-    damping = args.thread_damping
-    if damping is not None:
-        if "thread_damping" not in accepted:
-            ap.error(f"--thread-damping: backend {args.backend} takes no thread_damping")
-        if not damping >= 0:
-            ap.error(f"--thread-damping: a rate >= 0 [1/s], got {damping}")
-        jobs = [j._replace(options={**j.options, "thread_damping": damping}) for j in jobs]
-    weight = args.thread_weight
-    if weight is not None:
-        if "thread_weight" not in accepted:
-            ap.error(f"--thread-weight: backend {args.backend} takes no thread_weight")
-        if not weight > 0:
-            ap.error(f"--thread-weight: a mass per length > 0 [g/m], got {weight}")
-        jobs = [j._replace(options={**j.options, "thread_weight": weight * 1e-3}) for j in jobs]
+    stiffness, damping, weight = (
+        args.thread_contact_stiffness,
+        args.thread_damping,
+        args.thread_weight,
+    )
+    thread = [  # flag, backend option, value given, its value for the backend, valid, bound
+        ("--thread-contact-stiffness", "thread_contact_stiffness", stiffness, stiffness,
+         stiffness is not None and stiffness > 0, "a stiffness > 0 [N/m]"),
+        ("--smooth-joints", "thread_smooth_joints", args.smooth_joints or None, True, True, ""),
+        ("--thread-damping", "thread_damping", damping, damping,
+         damping is not None and damping >= 0, "a rate >= 0 [1/s]"),
+        ("--thread-weight", "thread_weight", weight, None if weight is None else weight * 1e-3,
+         weight is not None and weight > 0, "a mass per length > 0 [g/m]"),
+    ]  # fmt: skip
+    for flag, option, given, value, valid, bound in thread:
+        if given is None:
+            continue
+        if option not in accepted:
+            ap.error(f"{flag}: backend {args.backend} takes no {option}")
+        if not valid:
+            ap.error(f"{flag}: {bound}, got {given}")
+        jobs = [j._replace(options={**j.options, option: value}) for j in jobs]
     what = "knot-algorithm-N.yaml (one throw)" if args.single else "square-knot.yaml"
     if args.set:
         what += " --set " + " --set ".join(args.set)
