@@ -252,10 +252,10 @@ class Suture(_Model):
     damping: Rate | None = Field(default=None, ge=0.0)
     """Simulators that give the thread more mass than the real one (to keep a chain of
     capsules stable): how fast its free motion dies away [1/s]. Each capsule is slowed by
-    its simulated mass times this rate times its speed (and its spin likewise). The real
-    thread is so light that the pad's friction stops it almost at once; a heavier one
-    slowed too little coasts on the energy its stretch gives back, and a knot pulled taut
-    and let go flings its ends apart. ``None``: 0.5 /s."""
+    its simulated mass times this rate times its velocity, times (1 + its speed in m/s),
+    and its spin likewise. The real thread is so light that the pad's friction stops it
+    almost at once; a heavier one slowed too little coasts on the energy its stretch gives
+    back, and a knot pulled taut and let go flings its ends apart. ``None``: 0.5 /s."""
     weight: LinearDensity | None = Field(default=None, gt=0.0)
     """Simulators that give the thread more mass than the real one: the mass per length
     whose weight it keeps [kg/m]; the rest of its weight is cancelled, so that the tools
