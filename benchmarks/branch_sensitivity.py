@@ -538,7 +538,19 @@ def main(argv: Sequence[str]) -> int:
         "--sweep-base-error-as", default="placement", metavar="KIND",
         help="that sweep's --base-error-as (placement or calibration)",
     )  # fmt: skip
+    ap.add_argument(
+        "--thread-damping", type=float, default=None, metavar="PER_S",
+        help="the backend's thread_damping: how fast the thread's free motion dies away [1/s]",
+    )  # fmt: skip
+    ap.add_argument(
+        "--thread-weight", type=float, default=None, metavar="G_PER_M",
+        help="the backend's thread_weight: the mass per length whose weight the thread keeps [g/m]",
+    )  # fmt: skip
     args = ap.parse_args(argv)
+    for flag, value in (("--thread-damping", args.thread_damping),
+                        ("--thread-weight", args.thread_weight)):  # fmt: skip
+        if value is not None and not value > 0:
+            ap.error(f"{flag}: a number > 0, got {value}")
     try:
         variants = [parse_variant(v) for v in args.variant]
         seed, options, calibration = args.seed, {}, None
@@ -548,6 +560,10 @@ def main(argv: Sequence[str]) -> int:
             job = _sweep_job(args.sweep_run, args.backend, args.sweep_base_seed,
                              args.sweep_only, args.sweep_base_error_as)  # fmt: skip
             seed, options, calibration = job.seed, dict(job.options), job.calibration
+        if args.thread_damping is not None:
+            options["thread_damping"] = args.thread_damping
+        if args.thread_weight is not None:
+            options["thread_weight"] = args.thread_weight * 1e-3
         results = run_branches(
             args.procedure, at=args.at, variants=variants, seed=seed, sets=args.sets,
             backend=args.backend, max_time_s=args.max_time, workers=max(1, args.workers),

@@ -326,3 +326,28 @@ def test_each_steps_true_peak_is_its_own() -> None:
            "knot": None, "knot_centre_mm": None, "peak_true_tension_N": 3.25, "branch_s": 1.0,
            "steps": rec.steps}  # fmt: skip
     assert "true peak 3.25 N" in bs.format_results([row]).splitlines()[1]
+
+
+def test_the_thread_flags_reach_the_branches_backend(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    seen: dict = {}  # type: ignore[type-arg]
+
+    def fake_run_branches(procedure: str, **kwargs: object) -> list[dict]:  # type: ignore[type-arg]
+        seen.update(kwargs)
+        return []
+
+    monkeypatch.setattr(bs, "run_branches", fake_run_branches)
+    argv = ["p.yaml", "--at", "s", "--thread-damping", "20", "--thread-weight", "4"]
+    assert bs.main(argv) == 0
+    assert seen["backend_options"] == {"thread_damping": 20.0, "thread_weight": 4e-3}
+    seen.clear()
+    # a sweep run's perturbation keeps its own options beside the thread's
+    argv = [*argv, "--sweep-run", "3:1", "--backend", "pybullet-surgical-stitched"]
+    assert bs.main(argv) == 0
+    assert seen["backend_options"]["thread_weight"] == 4e-3
+    assert "friction_scale" in seen["backend_options"]
+    for flag in ("--thread-damping", "--thread-weight"):
+        with pytest.raises(SystemExit):
+            bs.main(["p.yaml", "--at", "s", flag, "0"])
+        assert f"{flag}: a number > 0, got 0.0" in capsys.readouterr().err
