@@ -88,6 +88,23 @@ def run(
             "the scene puts it; the skills plan from the base off by this.",
         ),
     ] = None,
+    thread_damping: Annotated[
+        str | None,
+        typer.Option(
+            help="The thread's damping rate, e.g. '20 1/s' (surgical backends; default: the "
+            "scene's suture.damping, else 0.5 1/s). Recorded in the trace.",
+            show_default=False,
+        ),
+    ] = None,
+    thread_weight: Annotated[
+        str | None,
+        typer.Option(
+            help="The mass per length whose weight the thread keeps, e.g. '4 g/m' (surgical "
+            "backends; default: the scene's suture.weight, else 0.1 g/m). Recorded in the "
+            "trace.",
+            show_default=False,
+        ),
+    ] = None,
 ) -> None:
     """Run a procedure; write DIR/trace.mcap and DIR/summary.json."""
     from suture_engine.runtime.cli_run import run_command
@@ -108,6 +125,8 @@ def run(
             video_interval=video_interval,
             faults=fault or [],
             calibration=calibration_error or [],
+            thread_damping=thread_damping,
+            thread_weight=thread_weight,
         )
     )
 

@@ -358,3 +358,30 @@ def test_the_printed_summary_gives_the_true_peak_with_when_and_where(
     assert "mirrored-knot.tighten, thread joint 16 (over limit 7.06 N)" in out
     _print_summary(SimpleNamespace(outcome="succeeded", metrics={}), None)
     assert "true tension peak" not in capsys.readouterr().out  # no thread simulated
+
+
+def test_the_threads_model_is_read_from_the_command_line_and_recorded(tmp_path: Path) -> None:
+    from suture_engine.trace.reader import TraceReader
+
+    out = tmp_path / "run"
+    res = _suture("run", "procedures/square-knot.yaml", "--out", str(out), "--max-time", "0.05",
+                  "--thread-damping", "20 1/s", "--thread-weight", "4 g/m")  # fmt: skip
+    assert res.returncode == 1, res.stderr  # stopped by the time limit
+    meta = TraceReader(out / "trace.mcap").meta
+    options = meta.get("extra", meta)["backend_options"]
+    assert options == {"thread_damping": 20.0, "thread_weight": pytest.approx(4e-3)}
+    shown = _suture("trace", str(out / "trace.mcap"))
+    assert '"thread_damping": 20.0' in shown.stdout
+    steps = str(PROCS / "steps.yaml")
+    for flag, value, message in (
+        ("--thread-damping", "20 mm", "expected 1/time (unit 1/s), found length"),
+        ("--thread-damping", "0", "expected a positive quantity in 1/s"),
+        ("--thread-weight", "4 gx/m", "unknown unit 'gx/m'"),
+    ):
+        bad = _suture("run", steps, "--backend", "ideal", flag, value, cwd=tmp_path)
+        assert bad.returncode == 2 and f"{flag} {value!r}: {message}" in bad.stderr, bad.stderr
+        assert "Traceback" not in bad.stderr
+    thread_free = _suture("run", steps, "--backend", "ideal", "--thread-damping", "20",
+                          cwd=tmp_path)  # fmt: skip
+    assert thread_free.returncode == 1 and "unsupported option" in thread_free.stderr
+    assert not (tmp_path / "runs").exists()  # refused before any output is written

@@ -113,6 +113,8 @@ def run_command(
     video_interval: float = 0.1,
     faults: Sequence[str] = (),
     calibration: Sequence[str] = (),
+    thread_damping: str | None = None,
+    thread_weight: str | None = None,
 ) -> int:
     """``suture run``: returns the exit code. ``backend`` None: the procedure's own
     ``backend:``, else ``pybullet``.
@@ -157,7 +159,17 @@ def run_command(
         _error(f"--operator {operator}: {'a folder' if operator.is_dir() else 'no such file'}")
         return 2
 
-    options = {}
+    options: dict[str, Any] = {}
+    for flag, text, key, unit in (
+        ("--thread-damping", thread_damping, "thread_damping", "1/s"),
+        ("--thread-weight", thread_weight, "thread_weight", "kg/m"),
+    ):
+        if text is None:
+            continue
+        value = _positive_quantity(flag, text, unit)
+        if value is None:
+            return 2
+        options[key] = value
     if backend == "replay":
         if replay_trace is None:
             _error("--backend replay needs --trace TRACE (the recording to serve)")
@@ -240,6 +252,23 @@ def run_command(
             return 2
         print(f"video: {written.path} ({written.frames} frames, every {written.interval_s:g} s)")
     return 0 if result.summary.outcome == "succeeded" else 1
+
+
+def _positive_quantity(flag: str, text: str, unit: str) -> float | None:
+    """``text`` as a positive quantity in ``unit`` (SI), or None after printing why not."""
+    from pydantic_core import PydanticCustomError
+
+    from suture_engine.language.units import Unit
+
+    try:
+        value = Unit(unit).convert(text)
+    except PydanticCustomError as exc:
+        _error(f"{flag} {text!r}: {exc.message()}")
+        return None
+    if not isinstance(value, float) or not value > 0.0:
+        _error(f"{flag} {text!r}: expected a positive quantity in {unit}")
+        return None
+    return value
 
 
 def _live_hooks(

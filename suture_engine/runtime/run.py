@@ -371,7 +371,7 @@ def run_procedure(
             robots=tuple(first.robots),
             backend=backend,
             params={k: _jsonable(v) for k, v in proc.params.items()},
-            extra=_meta_extra(path, sets, run_faults, calibration),
+            extra=_meta_extra(path, sets, run_faults, calibration, backend_options),
         )
         interp = Interpreter(
             plan,
@@ -409,7 +409,12 @@ def _meta_extra(
     sets: Sequence[str],
     faults: Sequence[Any],
     calibration: Mapping[str, Sequence[float]] | None = None,
+    backend_options: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
+    """The trace's run metadata beyond the procedure's: its file, ``--set`` values and
+    arithmetic, and when given the calibration error, the faults, and the options the
+    backend was built with (a perturbation, the thread's model: a run names the model
+    it ran on; the window option ``gui`` is left out)."""
     from suture_engine.arithmetic import arithmetic_record
 
     extra: dict[str, Any] = {
@@ -423,6 +428,9 @@ def _meta_extra(
         from suture_engine.faults.syntax import format_fault
 
         extra["faults"] = [format_fault(f) for f in faults]
+    options = {k: v for k, v in (backend_options or {}).items() if k != "gui"}
+    if options:
+        extra["backend_options"] = _jsonable(options)
     return extra
 
 
@@ -512,6 +520,8 @@ def _jsonable(value: Any) -> Any:
         return [_jsonable(v) for v in value]
     if isinstance(value, dict):
         return {str(k): _jsonable(v) for k, v in value.items()}
+    if hasattr(value, "tolist"):  # a numpy array or scalar
+        return _jsonable(value.tolist())
     return str(value)
 
 

@@ -72,6 +72,10 @@ def trace_command(path: Path, *, as_json: bool = False) -> int:
     for key in ("procedure", "seed", "control_rate_hz", "backend", "engine_version"):
         if key in meta:
             print(f"  {key:<16} {meta[key]}")
+    # how the run was set up beyond its procedure (the thread's model among the options)
+    for key in ("sets", "backend_options", "calibration_error", "faults"):
+        if meta.get(key):
+            print(f"  {key:<16} {json.dumps(meta[key], sort_keys=True)}")
     width = max((len(c["topic"]) for c in channels), default=0)
     for c in channels:
         print(f"  {c['topic']:<{width}}  {c['messages']:>9}  {c['schema']}")
