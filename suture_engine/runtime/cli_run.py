@@ -124,6 +124,13 @@ def run_command(
 
     A ``--fault`` that does not parse, or that the backend cannot simulate, is a usage
     error (exit 2); one whose field the fault model refuses is invalid input (exit 1).
+
+    ``--thread-damping`` and ``--thread-weight`` are quantities (``'20 1/s'``, ``'4 g/m'``;
+    a bare number is SI); one that does not parse, has another dimension, or is not
+    positive is a usage error (exit 2). They go to the backend as ``thread_damping`` [1/s]
+    and ``thread_weight`` [kg/m]. A backend that takes no such option (ideal, replay)
+    refuses them (exit 1); the PyBullet backends take them and use them where they build
+    the thread.
     """
     from backends.registry import UnknownBackend
     from suture_engine.errors import SutureError
