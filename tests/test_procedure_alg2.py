@@ -962,3 +962,28 @@ def test_the_main_jobs_mirrored_cinch_must_go_taut_neither_too_late_nor_too_soon
     off = load_procedure(ROOT / "procedures" / "square-knot.yaml", params={"check_throw": False})
     params = off.states["mirrored-knot"].use.states["cinch"].params  # type: ignore[union-attr]
     assert params.taut_within is None and params.taut_after is None  # type: ignore[union-attr]
+
+
+def test_the_mirrored_loop_height_and_pull_through_tolerance_reach_the_second_throw() -> None:
+    """``held_loop_height`` and ``pull_through_tolerance`` (the damped thread's settings)
+    reach the square knot's mirrored throw alone: its over-hook and its pull-through; the
+    first throw keeps its 40 mm loop and its 2 mm tolerance, and the defaults stay the
+    default thread's (33 mm, 2 mm)."""
+    for params, height, tolerance in (
+        ({}, 33e-3, 2e-3),
+        ({"held_loop_height": "28 mm", "pull_through_tolerance": "3 mm"}, 28e-3, 3e-3),
+    ):
+        square: Any = load_procedure(ROOT / "procedures" / "square-knot.yaml", params=params)
+        first, second = (square.states[s].use.states for s in ("simple-knot", "mirrored-knot"))
+        assert second["over-hook"].params.height == pytest.approx(height)
+        assert second["pull-through"].params.tolerance == pytest.approx(tolerance)
+        assert first["over-hook"].params.height == pytest.approx(40e-3)
+        assert first["pull-through"].params.tolerance == pytest.approx(2e-3)
+    # without the held loop the mirrored loop lies 25 mm up, whatever the held height
+    loose: Any = load_procedure(
+        ROOT / "procedures" / "square-knot.yaml",
+        params={"hold_loop": False, "held_loop_height": "28 mm"},
+    )
+    assert loose.states["mirrored-knot"].use.states["over-hook"].params.height == (
+        pytest.approx(25e-3)
+    )
