@@ -385,3 +385,18 @@ def test_the_threads_model_is_read_from_the_command_line_and_recorded(tmp_path: 
                           cwd=tmp_path)  # fmt: skip
     assert thread_free.returncode == 1 and "unsupported option" in thread_free.stderr
     assert not (tmp_path / "runs").exists()  # refused before any output is written
+
+
+def test_the_backend_options_are_recorded_as_json_without_the_window() -> None:
+    import numpy as np
+
+    from suture_engine.runtime.run import _meta_extra
+
+    options = {"base_error": {"endobot_1": np.array([1e-3, 0.0, -2e-3])}, "gui": True,
+               "friction_scale": np.float64(1.3), "thread_weight": 4e-3}  # fmt: skip
+    extra = _meta_extra("p.yaml", [], [], None, options)
+    recorded = extra["backend_options"]
+    assert recorded == {"base_error": {"endobot_1": [1e-3, 0.0, -2e-3]},
+                        "friction_scale": 1.3, "thread_weight": 4e-3}  # fmt: skip
+    json.dumps(recorded, allow_nan=False)  # the trace's metadata is JSON
+    assert "backend_options" not in _meta_extra("p.yaml", [], [], None, {"gui": True})
