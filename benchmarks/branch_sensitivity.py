@@ -547,10 +547,11 @@ def main(argv: Sequence[str]) -> int:
         help="the backend's thread_weight: the mass per length whose weight the thread keeps [g/m]",
     )  # fmt: skip
     args = ap.parse_args(argv)
-    for flag, value in (("--thread-damping", args.thread_damping),
-                        ("--thread-weight", args.thread_weight)):  # fmt: skip
-        if value is not None and not value > 0:
-            ap.error(f"{flag}: a number > 0, got {value}")
+    # the bounds of the backend's options, as knot_success.py checks them
+    if args.thread_damping is not None and not args.thread_damping >= 0:
+        ap.error(f"--thread-damping: a rate >= 0 [1/s], got {args.thread_damping}")
+    if args.thread_weight is not None and not args.thread_weight > 0:
+        ap.error(f"--thread-weight: a mass per length > 0 [g/m], got {args.thread_weight}")
     try:
         variants = [parse_variant(v) for v in args.variant]
         seed, options, calibration = args.seed, {}, None

@@ -347,7 +347,10 @@ def test_the_thread_flags_reach_the_branches_backend(
     assert bs.main(argv) == 0
     assert seen["backend_options"]["thread_weight"] == 4e-3
     assert "friction_scale" in seen["backend_options"]
-    for flag in ("--thread-damping", "--thread-weight"):
+    for flag, value, message in (
+        ("--thread-damping", "-1", "a rate >= 0 [1/s], got -1.0"),
+        ("--thread-weight", "0", "a mass per length > 0 [g/m], got 0.0"),
+    ):
         with pytest.raises(SystemExit):
-            bs.main(["p.yaml", "--at", "s", flag, "0"])
-        assert f"{flag}: a number > 0, got 0.0" in capsys.readouterr().err
+            bs.main(["p.yaml", "--at", "s", flag, value])
+        assert f"{flag}: {message}" in capsys.readouterr().err

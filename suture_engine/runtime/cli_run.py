@@ -125,12 +125,13 @@ def run_command(
     A ``--fault`` that does not parse, or that the backend cannot simulate, is a usage
     error (exit 2); one whose field the fault model refuses is invalid input (exit 1).
 
-    ``--thread-damping`` and ``--thread-weight`` are quantities (``'20 1/s'``, ``'4 g/m'``;
-    a bare number is SI); one that does not parse, has another dimension, or is not
-    positive is a usage error (exit 2). They go to the backend as ``thread_damping`` [1/s]
-    and ``thread_weight`` [kg/m]. A backend that takes no such option (ideal, replay)
-    refuses them (exit 1); the PyBullet backends take them and use them where they build
-    the thread.
+    ``--thread-damping`` and ``--thread-weight`` are read as the scene's ``suture.damping``
+    and ``suture.weight`` are (``'20 1/s'``, ``'4 g/m'``; a bare number is SI): one that
+    does not parse, has another dimension, or is out of the field's bounds (a rate >= 0,
+    a mass per length > 0) is a usage error (exit 2). They go to the backend as
+    ``thread_damping`` [1/s] and ``thread_weight`` [kg/m]. A backend that takes no such
+    option (ideal, replay) refuses them (exit 1); the PyBullet backends take them and use
+    them where they build the thread.
     """
     from backends.registry import UnknownBackend
     from suture_engine.errors import SutureError
@@ -167,16 +168,16 @@ def run_command(
         return 2
 
     options: dict[str, Any] = {}
-    for flag, text, key, unit in (
-        ("--thread-damping", thread_damping, "thread_damping", "1/s"),
-        ("--thread-weight", thread_weight, "thread_weight", "kg/m"),
+    for flag, text, field in (
+        ("--thread-damping", thread_damping, "damping"),
+        ("--thread-weight", thread_weight, "weight"),
     ):
         if text is None:
             continue
-        value = _positive_quantity(flag, text, unit)
+        value = _suture_field(flag, text, field)
         if value is None:
             return 2
-        options[key] = value
+        options[f"thread_{field}"] = value
     if backend == "replay":
         if replay_trace is None:
             _error("--backend replay needs --trace TRACE (the recording to serve)")
@@ -261,21 +262,22 @@ def run_command(
     return 0 if result.summary.outcome == "succeeded" else 1
 
 
-def _positive_quantity(flag: str, text: str, unit: str) -> float | None:
-    """``text`` as a positive quantity in ``unit`` (SI), or None after printing why not."""
-    from pydantic_core import PydanticCustomError
+def _suture_field(flag: str, text: str, field: str) -> float | None:
+    """``text`` read as the scene's ``suture.<field>`` is (its unit and bounds) [SI], or
+    None after printing why not."""
+    from typing import Annotated
 
-    from suture_engine.language.units import Unit
+    from pydantic import TypeAdapter, ValidationError
 
+    from suture_engine.language.scene import Suture
+
+    info = Suture.model_fields[field]
     try:
-        value = Unit(unit).convert(text)
-    except PydanticCustomError as exc:
-        _error(f"{flag} {text!r}: {exc.message()}")
+        value: float | None = TypeAdapter(Annotated[info.annotation, info]).validate_python(text)
+    except ValidationError as exc:
+        _error(f"{flag} {text!r}: {exc.errors()[0]['msg']} (as the scene's suture.{field})")
         return None
-    if not isinstance(value, float) or not value > 0.0:
-        _error(f"{flag} {text!r}: expected a positive quantity in {unit}")
-        return None
-    return value
+    return None if value is None else float(value)
 
 
 def _live_hooks(
