@@ -277,6 +277,59 @@ def test_the_mirrored_throw_turns_the_arm_along_the_tail_to_the_first_knot() -> 
     assert abs(jaws[2] - jaws0[2]) < 1e-3
 
 
+def test_retract_mirror_draws_the_loop_off_along_the_turned_arm() -> None:
+    """``retract_mirror``: the aligned mirrored throw's ``draw-tail`` backs the jaws out
+    along the turned arm (the thesis' step 4) instead of across it, ``clear-jaws`` is left
+    out (its retry is reached from it alone), and the slide-off draws the holder along
+    the arm's line, beyond its end, with no floor (not measured for this throw). The arm's
+    direction is rebuilt with scipy's rotations (``_bent_jaws``). Without it, or
+    unaligned, the throw is as before."""
+    from suture_engine.runtime.plan import compile_procedure
+
+    second = {"second": True, "mirror": True, "stitch": False, "align_mirror": True}
+    retract: Any = load_procedure(PROC, params={**second, "retract_mirror": True})
+    points = retract.scene.tissue.points
+    grab = retract.states["grab-tail"].params
+    tip = np.asarray(points[grab.target]) + np.asarray(grab.offset)
+    tip = tip + np.asarray(retract.states["align-jaws"].params.target)
+    _, arm = _bent_jaws(retract, tip, retract.states["align-arm"].params.angles)
+
+    def angle_deg(a: Any, b: Any) -> float:
+        a, b = np.asarray(a, float), np.asarray(b, float)
+        return math.degrees(math.acos(a @ b / np.linalg.norm(a) / np.linalg.norm(b)))
+
+    draw = retract.states["draw-tail"].params
+    assert draw.relative_to == "grasper"
+    assert angle_deg(draw.target, -arm) < 5.0  # back along the arm, towards its joint
+    slide = retract.states["slide-off"].params
+    assert slide.relative_to == "stitcher"
+    assert angle_deg(slide.target, arm) < 8.0  # on along the arm's line (5.4 deg: z -5 mm)
+    assert slide.taut_after is None and slide.until_tension == pytest.approx(1.0)
+    plan = compile_procedure(retract)
+    assert not plan.steps["clear-jaws"].enabled  # its retry is reached from it alone
+    for params in (second, {**second, "align_mirror": False, "retract_mirror": True}):
+        proc: Any = load_procedure(PROC, params=params)
+        assert compile_procedure(proc).steps["clear-jaws"].enabled, params
+        assert proc.states["draw-tail"].params.target == pytest.approx([20e-3, 0.0, 3e-3])
+        assert proc.states["slide-off"].params.target == pytest.approx([-80e-3, 0.0, -5e-3])
+    first: Any = load_procedure(PROC, params={"stitch": False, "retract_mirror": True})
+    assert first.states["draw-tail"].params.target == pytest.approx([20e-3, 0.0, 3e-3])
+
+
+def test_the_square_knot_passes_retract_mirror_to_its_mirrored_throw() -> None:
+    from suture_engine.runtime.run import load_plan
+
+    for sets, target in [
+        (["algorithm=3", "retract_mirror=true"], (0.0, 20e-3, 3e-3)),
+        (["algorithm=3"], (20e-3, 0.0, 3e-3)),
+    ]:
+        _, plan = load_plan(PROC.parent / "square-knot.yaml", sets)
+        mirrored: Any = plan.steps["mirrored-knot.draw-tail"].make_skill().params
+        first: Any = plan.steps["simple-knot.draw-tail"].make_skill().params
+        assert mirrored.target == pytest.approx(target), sets
+        assert first.target == pytest.approx((20e-3, 0.0, 3e-3)), sets
+
+
 def robot_bases(scene: Any) -> dict[str, tuple[Any, Any]]:
     """Each robot's base (position, row-major rotation), from the scene's declared pose."""
     bases = {}
