@@ -547,11 +547,11 @@ def main(argv: Sequence[str]) -> int:
         help="the backend's thread_weight: the mass per length whose weight the thread keeps [g/m]",
     )  # fmt: skip
     args = ap.parse_args(argv)
-    # the bounds of the backend's options, as knot_success.py checks them
-    if args.thread_damping is not None and not args.thread_damping >= 0:
-        ap.error(f"--thread-damping: a rate >= 0 [1/s], got {args.thread_damping}")
-    if args.thread_weight is not None and not args.thread_weight > 0:
-        ap.error(f"--thread-weight: a mass per length > 0 [g/m], got {args.thread_weight}")
+    thread = (("--thread-damping", "thread_damping", args.thread_damping),
+              ("--thread-weight", "thread_weight", args.thread_weight))  # fmt: skip
+    for flag, option, given in thread:  # the bounds knot_success.py checks
+        if given is not None and (problem := _knot_success().thread_flag_problem(option, given)):
+            ap.error(f"{flag}: {problem}")
     try:
         variants = [parse_variant(v) for v in args.variant]
         seed, options, calibration = args.seed, {}, None

@@ -640,6 +640,24 @@ def pending(jobs: Sequence[Job], done: Sequence[Row]) -> list[Job]:
     return [j for j in jobs if _job_key(j) not in have]
 
 
+THREAD_FLAG_BOUNDS: dict[str, tuple[Callable[[float], bool], str]] = {
+    "thread_contact_stiffness": (lambda v: v > 0, "a stiffness > 0 [N/m]"),
+    "thread_damping": (lambda v: v >= 0, "a rate >= 0 [1/s]"),
+    "thread_weight": (lambda v: v > 0, "a mass per length > 0 [g/m]"),
+}
+"""The thread flags' bounds, by backend option, in the flags' own units (the backend's:
+the weight in g/m); ``benchmarks/branch_sensitivity.py`` reads them too."""
+
+
+def thread_flag_problem(option: str, given: float) -> str | None:
+    """Why a thread flag's value ``given`` is out of its bounds, or None (in bounds, or a
+    flag with no bounds)."""
+    if option not in THREAD_FLAG_BOUNDS:
+        return None
+    valid, bound = THREAD_FLAG_BOUNDS[option]
+    return None if valid(given) else f"{bound}, got {given}"
+
+
 def main(argv: Sequence[str]) -> int:
     """Run the benchmark and print the table; 0."""
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -817,22 +835,19 @@ def main(argv: Sequence[str]) -> int:
         args.thread_damping,
         args.thread_weight,
     )
-    thread = [  # flag, backend option, value given, its value for the backend, valid, bound
-        ("--thread-contact-stiffness", "thread_contact_stiffness", stiffness, stiffness,
-         stiffness is not None and stiffness > 0, "a stiffness > 0 [N/m]"),
-        ("--smooth-joints", "thread_smooth_joints", args.smooth_joints or None, True, True, ""),
-        ("--thread-damping", "thread_damping", damping, damping,
-         damping is not None and damping >= 0, "a rate >= 0 [1/s]"),
-        ("--thread-weight", "thread_weight", weight, None if weight is None else weight * 1e-3,
-         weight is not None and weight > 0, "a mass per length > 0 [g/m]"),
+    thread = [  # flag, backend option, value given, its value for the backend
+        ("--thread-contact-stiffness", "thread_contact_stiffness", stiffness, stiffness),
+        ("--smooth-joints", "thread_smooth_joints", args.smooth_joints or None, True),
+        ("--thread-damping", "thread_damping", damping, damping),
+        ("--thread-weight", "thread_weight", weight, None if weight is None else weight * 1e-3),
     ]  # fmt: skip
-    for flag, option, given, value, valid, bound in thread:
+    for flag, option, given, value in thread:
         if given is None:
             continue
         if option not in accepted:
             ap.error(f"{flag}: backend {args.backend} takes no {option}")
-        if not valid:
-            ap.error(f"{flag}: {bound}, got {given}")
+        if (problem := thread_flag_problem(option, given)) is not None:
+            ap.error(f"{flag}: {problem}")
         jobs = [j._replace(options={**j.options, option: value}) for j in jobs]
     what = "knot-algorithm-N.yaml (one throw)" if args.single else "square-knot.yaml"
     if args.set:
