@@ -164,10 +164,30 @@ def test_on_algorithm_3s_bench_the_needle_holder_takes_the_loaded_thread() -> No
         hanging.close()
 
 
+def test_a_withdrawn_thread_leaves_the_world_and_is_not_kept(model) -> None:  # type: ignore[no-untyped-def]
+    """The backend's side of ``cut-suture`` with ``withdraw``: the thread goes as a cut
+    one does, but nothing is returned or kept, so the ground truth has no cut centerline;
+    a new thread loads after it."""
+    be = StitchedSurgicalPyBulletBackend()
+    try:
+        be.reset(model, 0)
+        _hold(be, 50)
+        assert be.cut_suture(withdraw=True) is None
+        assert be.scene.suture is None and be.cut_threads == []
+        truth = be.ground_truth()
+        assert "centerline" not in truth and not truth.get("cut_centerlines")
+        be.load_suture("entry_1", "exit_1")
+        assert be.scene.suture is not None
+    finally:
+        be.close()
+
+
+@pytest.mark.slow
 def test_a_withdrawn_suture_is_not_a_stitch_of_the_result(tmp_path: Path) -> None:
     """``cut-suture`` with ``withdraw``: the thread leaves the world as a cut one does, but
     it is not kept (no cut centerline in the ground truth or the trace), so the run's
-    ``knot`` is the loaded thread's alone; a plain cut keeps it (the test above)."""
+    ``knot`` is the loaded thread's alone; a plain cut keeps it (the test below). About
+    40 s: the whole reload procedure, as the default suite's run of it is."""
     from suture_engine.trace import channels
     from suture_engine.trace.reader import TraceReader
 
