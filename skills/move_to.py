@@ -15,7 +15,15 @@ from suture_engine.language.units import Angle, Force, Length, Position, Speed
 if TYPE_CHECKING:
     from suture_engine.validation.problem import Problem
 
-__all__ = ["NOT_TAUT", "SLACK_AT_START", "TAUT_EARLY", "MoveTo", "MoveToParams"]
+__all__ = [
+    "ARM_VERTICAL_DEG",
+    "NOT_TAUT",
+    "SLACK_AT_START",
+    "TAUT_EARLY",
+    "MoveTo",
+    "MoveToParams",
+    "arm_frame",
+]
 
 TAUT_EARLY = "taut-early"
 """Failure event: the strand went taut (``until_tension``) before ``taut_after``."""
@@ -50,6 +58,13 @@ class MoveToParams(SkillParams):
     such targets are not checked for reachability before running."""
     offset: Position = (0.0, 0.0, 0.0)
     """Added to the target, in the world frame [m] (e.g. to stop above the tissue)."""
+    along_arm_of: RoleRef | None = None
+    """With ``relative_to``: ``target`` and ``offset`` are (along, across, up) [m] in the
+    frame of this role's arm as the step starts (:func:`arm_frame`): along its distal
+    segment towards the tool's end (a bent-tip grasper's bent arm from its encoders and
+    measured bend, else the shaft), up as near the world's up as is orthogonal to it,
+    and across completing a right-handed frame. A move laid out along a tool then stays
+    along it however the tool was turned or its base is off. ``None``: world axes."""
     roll: Angle | None = None
     """Tool roll q3 at the target [rad] (3.17); ``None`` keeps the current roll."""
     roll_tolerance: Angle | None = Field(default=None, gt=0.0, le=math.radians(30.0))
@@ -165,6 +180,24 @@ class MoveTo(Skill):
                         path=name,
                     )
                 )
+        if params.along_arm_of is not None and params.relative_to is None:
+            problems.append(
+                Problem(
+                    "along-arm-without-relative-to",
+                    "along_arm_of gives the axes of an offset from a tool tip: give "
+                    "relative_to too",
+                    path="along_arm_of",
+                )
+            )
+        if params.along_arm_of is not None and isinstance(params.target, str):
+            problems.append(
+                Problem(
+                    "along-arm-with-a-point",
+                    f"along_arm_of needs target as an (along, across, up) offset, not the "
+                    f"tissue point {params.target!r}",
+                    path="target",
+                )
+            )
         if params.free_of is not None and params.until_tension is None:
             problems.append(
                 Problem(
@@ -207,14 +240,23 @@ class MoveTo(Skill):
             base = points[p.target]
         else:
             base = p.target
+        offset = p.offset
+        if p.along_arm_of is not None:
+            import numpy as np
+
+            arm = ctx.robot(p.along_arm_of)
+            start = ctx.start.robots[arm]
+            axes = arm_frame(start.q, ctx.base_poses.get(arm), start.tool.bend)
+            base = tuple(float(v) for v in axes @ np.asarray(base, dtype=float))
+            offset = tuple(float(v) for v in axes @ np.asarray(offset, dtype=float))
         if p.relative_to is not None:
             other = ctx.robot(p.relative_to)
             tip = tool_tip_world(ctx.start.robots[other].q, ctx.base_poses.get(other))
             base = tuple(float(tip[i]) + float(base[i]) for i in range(3))
         return (
-            float(base[0]) + p.offset[0],
-            float(base[1]) + p.offset[1],
-            float(base[2]) + p.offset[2],
+            float(base[0]) + offset[0],
+            float(base[1]) + offset[1],
+            float(base[2]) + offset[2],
         )
 
     def start(self, ctx: Any) -> None:
@@ -389,6 +431,47 @@ class MoveTo(Skill):
                 f"{math.degrees(roll_error):.1f} deg off",
             )
         return StepResult(command)
+
+
+def arm_frame(q: Any, base: Any, bend: Any) -> Any:
+    """The axes of a tool's arm, as the columns of a rotation matrix (world frame).
+
+    x is the arm's direction towards the tool's end: a bent-tip grasper's bent arm
+    R Rx(b0) Ry(b1) e_z (:func:`skills.wrap.bent_arm`), which for a straight tool
+    (bend (0, 0)) is the shaft's axis R e_z out of the RCM point. z is the world's up
+    e_z with its part along x taken out, normalized; y = z x x.
+
+    Args:
+        q: the robot's encoder joints [rad, rad, rad, m].
+        base: its base pose (position [m], row-major rotation), or None for the world.
+        bend: the measured universal joint angles [rad].
+
+    Returns:
+        A 3x3 array [x y z]: world = axes @ (along, across, up).
+
+    Raises:
+        ValueError: the arm points within :data:`ARM_VERTICAL_DEG` of straight up or
+            down, where "up across the arm" is undefined (a step that starts so fails).
+    """
+    import numpy as np
+
+    from skills.wrap import bent_arm
+
+    _, x = bent_arm(q, base, bend)
+    x = np.asarray(x, dtype=float) / float(np.linalg.norm(x))
+    up = np.array([0.0, 0.0, 1.0]) - x[2] * x
+    norm = float(np.linalg.norm(up))
+    if norm < math.sin(math.radians(ARM_VERTICAL_DEG)):
+        raise ValueError(
+            f"the arm points {math.degrees(math.acos(min(1.0, abs(float(x[2]))))):.1f} deg "
+            f"from vertical (under {ARM_VERTICAL_DEG:g} deg): along_arm_of has no up across it"
+        )
+    z = up / norm
+    return np.column_stack([x, np.cross(z, x), z])
+
+
+ARM_VERTICAL_DEG = 5.0
+""":func:`arm_frame` refuses an arm within this angle of vertical [deg]."""
 
 
 def _guard_estimator(ctx: Any, robot: str, motion_world: Any) -> Any:

@@ -413,3 +413,73 @@ def test_a_roll_tolerance_does_not_end_a_roll_that_still_closes_in() -> None:
     done = skill._traj.duration
     assert skill.step(ctx, _obs(done + 0.5, behind)).status is SkillStatus.RUNNING
     assert skill.step(ctx, _obs(done + 0.6, there)).status is SkillStatus.SUCCESS
+
+
+# ----------------------------------------------------------------- along an arm
+
+
+def _arm_ctx(q: np.ndarray, bend: tuple[float, float] = (0.0, 0.0)) -> SkillContext:
+    tool = ToolState(kind="bent-tip-grasper", bend=bend)
+    ro = RobotObservation(q=q, qd=np.zeros(4), base_wrench=np.zeros(6), tool=tool)
+    start = Observation(tick=0, t=0.0, robots={ROBOT: ro}, scene=SceneGeometry())
+    return SkillContext(step="s", roles={"arm": ROBOT}, dt=1e-3, start=start, params={})
+
+
+def _goal(ctx: SkillContext, target: tuple[float, float, float], **extra: Any) -> np.ndarray:
+    skill = MoveTo(
+        {"robot": "arm", "relative_to": "arm", "along_arm_of": "arm", "target": target, **extra}
+    )
+    skill.start(ctx)
+    return np.asarray(skill._goal) - endobot.forward_kinematics(ctx.start.robots[ROBOT].q).position
+
+
+def test_along_a_straight_arm_the_axes_follow_the_shaft_out_of_the_rcm_point() -> None:
+    """A straight tool's arm is its shaft: the line from the RCM point (the base's origin)
+    through the tool tip. Along it, up in the vertical plane through it, across level; the
+    frame right-handed. The oracle is the tip's own position, not the tool's rotation."""
+    q0 = np.array([0.3, -0.4, 0.5, 0.12])
+    tip = endobot.forward_kinematics(q0).position
+    shaft = tip / np.linalg.norm(tip)
+    ctx = _arm_ctx(q0)
+    np.testing.assert_allclose(_goal(ctx, (0.01, 0.0, 0.0)), 0.01 * shaft, atol=1e-12)
+    up = _goal(ctx, (0.0, 0.0, 0.005))
+    assert np.linalg.norm(up) == pytest.approx(0.005)
+    assert abs(up @ shaft) < 1e-12 and up[2] > 0.0
+    assert abs(np.cross(shaft, [0.0, 0.0, 1.0]) @ up) < 1e-12  # in the vertical plane
+    across = _goal(ctx, (0.0, 0.004, 0.0))
+    assert np.linalg.norm(across) == pytest.approx(0.004)
+    assert abs(across[2]) < 1e-12 and abs(across @ shaft) < 1e-12
+    assert np.cross(shaft, across) @ up > 0.0  # x, y, z right-handed
+    # the offset is in the same axes and adds to the target
+    both = _goal(ctx, (0.01, 0.0, 0.0), offset=(0.0, 0.0, 0.005))
+    np.testing.assert_allclose(both, 0.01 * shaft + up, atol=1e-12)
+
+
+def test_along_a_bent_arm_the_axes_follow_the_measured_bend() -> None:
+    """A bent-tip grasper's arm, rebuilt with scipy's rotations from the joints and the
+    measured universal joint angles (about x, then the turned y)."""
+    from scipy.spatial.transform import Rotation
+
+    q0 = np.array([0.2, 0.3, -0.6, 0.1])
+    bend = (0.9, -0.4)
+    arm = (Rotation.from_euler("XYZ", q0[:3]) * Rotation.from_euler("XY", bend)).apply([0, 0, 1])
+    goal = _goal(_arm_ctx(q0, bend), (-0.02, 0.0, 0.0))
+    np.testing.assert_allclose(goal, -0.02 * arm, atol=1e-12)
+    straight = _goal(_arm_ctx(q0), (-0.02, 0.0, 0.0))
+    assert np.degrees(np.arccos(goal @ straight / 0.02**2)) > 30.0  # the bend matters
+
+
+def test_an_arm_pointing_straight_down_has_no_axes_and_the_start_says_so() -> None:
+    with pytest.raises(ValueError, match="from vertical"):
+        _goal(_arm_ctx(np.array([0.0, 0.0, 0.0, 0.1])), (0.01, 0.0, 0.0))
+
+
+def test_along_arm_of_needs_an_offset_from_a_tool_tip() -> None:
+    from skills.move_to import MoveToParams
+
+    alone = MoveToParams(robot="a", target=(0.01, 0.0, 0.0), along_arm_of="b")
+    assert [p.code for p in MoveTo.check(alone, None)] == ["along-arm-without-relative-to"]
+    point = MoveToParams(robot="a", target="entry", relative_to="a", along_arm_of="b")
+    assert [p.code for p in MoveTo.check(point, None)] == ["along-arm-with-a-point"]
+    fine = MoveToParams(robot="a", target=(0.01, 0.0, 0.0), relative_to="a", along_arm_of="b")
+    assert MoveTo.check(fine, None) == []
