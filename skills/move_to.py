@@ -247,8 +247,9 @@ class MoveTo(Skill):
             arm = ctx.robot(p.along_arm_of)
             start = ctx.start.robots[arm]
             axes = arm_frame(start.q, ctx.base_poses.get(arm), start.tool.bend)
-            base = tuple(float(v) for v in axes @ np.asarray(base, dtype=float))
-            offset = tuple(float(v) for v in axes @ np.asarray(offset, dtype=float))
+            b, o = axes @ np.asarray(base, dtype=float), axes @ np.asarray(offset, dtype=float)
+            base = (float(b[0]), float(b[1]), float(b[2]))
+            offset = (float(o[0]), float(o[1]), float(o[2]))
         if p.relative_to is not None:
             other = ctx.robot(p.relative_to)
             tip = tool_tip_world(ctx.start.robots[other].q, ctx.base_poses.get(other))
