@@ -434,6 +434,10 @@ class MoveTo(Skill):
         return StepResult(command)
 
 
+ARM_VERTICAL_DEG = 5.0
+""":func:`arm_frame` refuses an arm within this angle of vertical [deg]."""
+
+
 def arm_frame(q: Any, base: Any, bend: Any) -> Any:
     """The axes of a tool's arm, as the columns of a rotation matrix (world frame).
 
@@ -469,10 +473,6 @@ def arm_frame(q: Any, base: Any, bend: Any) -> Any:
         )
     z = up / norm
     return np.column_stack([x, np.cross(z, x), z])
-
-
-ARM_VERTICAL_DEG = 5.0
-""":func:`arm_frame` refuses an arm within this angle of vertical [deg]."""
 
 
 def _guard_estimator(ctx: Any, robot: str, motion_world: Any) -> Any:
