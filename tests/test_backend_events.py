@@ -78,6 +78,7 @@ def test_a_pull_above_the_grip_limit_reports_grip_slips_at_the_limit() -> None:
         assert slid == pytest.approx(1e3 * near.slid, abs=1e-3)
         assert 3.0 < slid < 6.5
         m = be.run_metrics()
+        assert m["thread"]["capsules"] == len(be.scene.suture.bodies)
         assert m["grip_slips"] == len(events)
         assert m["grip_slip_mm"] == pytest.approx(slid, abs=1e-3)
         assert m["grip_slips_by_robot"] == {
@@ -110,7 +111,9 @@ def test_a_pull_below_the_grip_limit_reports_none() -> None:
             be._physics_step()
             events += be.backend_events()
         assert events == []
-        assert be.run_metrics() == {"grip_slips": 0, "grip_slip_mm": 0.0, "grip_slips_by_robot": {}}
+        m = be.run_metrics()
+        del m["thread"]
+        assert m == {"grip_slips": 0, "grip_slip_mm": 0.0, "grip_slips_by_robot": {}}
     finally:
         be.close()
 
@@ -156,7 +159,15 @@ def test_a_needle_hand_over_that_stops_short_is_reported_and_reads_as_not_passed
         reading = be._tool_reading("endobot_1")
         assert (reading.jaw_closed, reading.jaw2_closed) == (True, False)
         assert st.needle_holder == 0
-        assert be.run_metrics() == {"needle_stalls": 1}
+        m = be.run_metrics()
+        # the thread as SutureParams(length=0.06, n_segments=12) builds it: 5 mm capsules
+        # of 1 g each (200 g/m), damped at 0.5 /s, keeping 0.1 g/m of weight
+        assert m.pop("thread") == {
+            "capsules": 12, "capsule_mm": 5.0, "damping_per_s": 0.5, "weight_g_per_m": 0.1,
+            "simulated_g_per_m": 200.0, "smooth_joints": False, "bending_stiffness_Nm2": 0.0,
+            "contact_stiffness_N_per_m": None,
+        }  # fmt: skip
+        assert m == {"needle_stalls": 1}
     finally:
         be.close()
 

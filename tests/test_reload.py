@@ -172,8 +172,11 @@ def test_a_withdrawn_thread_leaves_the_world_and_is_not_kept(model) -> None:  # 
     try:
         be.reset(model, 0)
         _hold(be, 50)
+        built = be.thread_model()
+        assert built is not None and built["damping_per_s"] == 0.5
         assert be.cut_suture(withdraw=True) is None
         assert be.scene.suture is None and be.cut_threads == []
+        assert be.run_metrics()["thread"] == built  # the run still names its model
         truth = be.ground_truth()
         assert "centerline" not in truth and not truth.get("cut_centerlines")
         be.load_suture("entry_1", "exit_1")

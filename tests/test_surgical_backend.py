@@ -426,6 +426,43 @@ def test_suture_stiffness_options_reach_the_thread() -> None:
         be.close()
 
 
+@pytest.mark.parametrize(
+    ("declared", "options", "damping", "weight_g"),
+    [
+        ({}, {}, 0.5, 0.1),  # the thread's defaults
+        ({"damping": 20.0, "weight": 4e-3}, {}, 20.0, 4.0),  # the scene's model
+        ({"damping": 20.0, "weight": 4e-3}, {"thread_damping": 7.0}, 7.0, 4.0),  # a flag wins
+    ],
+)
+def test_the_run_names_the_thread_model_it_built(
+    declared: dict[str, float], options: dict[str, float], damping: float, weight_g: float
+) -> None:
+    """``run_metrics()["thread"]`` reports the thread the run built: the defaults, else
+    the scene's ``suture.damping`` and ``suture.weight``, else the backend's options; its
+    capsules and their mass as the simulator holds them."""
+    import pybullet as p
+
+    scene = load_procedure(BENCH).scene
+    scene = scene.model_copy(update={"suture": scene.suture.model_copy(update=declared)})
+    be = SurgicalPyBulletBackend(**options)
+    try:
+        be.reset(scene, 0)
+        assert be.scene is not None and be.scene.suture is not None
+        model = be.run_metrics()["thread"]
+        body = be.scene.suture.bodies[0]
+        mass = p.getDynamicsInfo(body, -1, physicsClientId=be.client)[0]  # [kg]
+        n = len(be.scene.suture.bodies)
+        length = float(scene.suture.length)
+        assert model["capsules"] == n
+        assert model["capsule_mm"] == pytest.approx(1e3 * length / n)
+        assert model["damping_per_s"] == pytest.approx(damping)
+        assert model["weight_g_per_m"] == pytest.approx(weight_g)
+        assert model["simulated_g_per_m"] == pytest.approx(1e3 * mass / (length / n))
+        assert model["smooth_joints"] is False and model["contact_stiffness_N_per_m"] is None
+    finally:
+        be.close()
+
+
 def test_ground_truth_is_read_on_look_up_and_matches_the_simulator() -> None:
     """The lazy ground truth gives the same values as reading the simulator directly, and
     only the keys asked for are computed."""

@@ -275,6 +275,7 @@ class PyBulletBackend:
         if thread_weight is not None and not thread_weight > 0.0:
             raise BackendError(self.name, f"thread_weight must be > 0 [kg/m], got {thread_weight}")
         self.thread_weight = thread_weight
+        self._thread_model: dict[str, Any] | None = None
         self.scene: Any = None
         """The :class:`backends.pybullet.scene.Scene` when the surgical scene is built."""
         self._scene_model: Any = None
@@ -335,6 +336,7 @@ class PyBulletBackend:
         scene = self._thread_options(scene)
         self._scene_model = scene
         self.cut_threads = []
+        self._thread_model = None
         self._contact_diameter = None
         self.tick = 0
         self._start_q = dict(self._q0)
@@ -750,8 +752,12 @@ class PyBulletBackend:
         ``grip_slips`` (how many times the thread slid through a grasper's jaws),
         ``grip_slip_mm`` (how far in all [mm]) and ``grip_slips_by_robot`` (robot ->
         ``{"slips", "mm"}``, the graspers that slipped); with a stitcher,
-        ``needle_stalls`` (how many needle hand-overs stopped short)."""
+        ``needle_stalls`` (how many needle hand-overs stopped short); with a thread,
+        ``thread`` (:meth:`thread_model`: the model the run's figures were made on)."""
         metrics: dict[str, Any] = {}
+        model = self.thread_model()
+        if model is not None:
+            metrics["thread"] = model
         graspers = self._graspers()
         if graspers:
             slipped = {robot: t for robot, t in graspers.items() if t.slips}
@@ -768,6 +774,34 @@ class PyBulletBackend:
         if stitchers:
             metrics["needle_stalls"] = sum(len(t.stalls) for t in stitchers)
         return metrics
+
+    def thread_model(self) -> dict[str, Any] | None:
+        """The simulated thread's model as the run last built it (kept once the thread
+        is cut), for ``summary.json``: its
+        ``capsules`` (how many), ``capsule_mm`` (each one's length [mm]),
+        ``damping_per_s`` (its free motion's damping rate [1/s]), ``weight_g_per_m``
+        (the weight it keeps [g/m]; the rest of its simulated mass is cancelled),
+        ``simulated_g_per_m`` (its simulated mass [g/m]), ``smooth_joints``,
+        ``bending_stiffness_Nm2`` (EI [N*m^2]) and ``contact_stiffness_N_per_m`` (None:
+        rigid contacts). A check's thresholds are measured on one model: a figure
+        names it. None when no thread was built (the robots alone)."""
+        suture = self.scene.suture if self.scene is not None else None
+        return self._built_thread_model() if suture is not None else self._thread_model
+
+    def _built_thread_model(self) -> dict[str, Any]:
+        assert self.scene is not None and self.scene.suture is not None
+        prm = self.scene.suture.params
+        contact = self._thread_contact()
+        return {
+            "capsules": prm.n_segments,
+            "capsule_mm": round(1e3 * prm.segment_length, 6),
+            "damping_per_s": prm.linear_damping,
+            "weight_g_per_m": round(1e3 * prm.real_mass_per_length, 9),
+            "simulated_g_per_m": round(1e3 * prm.segment_mass / prm.segment_length, 6),
+            "smooth_joints": prm.smooth_joints,
+            "bending_stiffness_Nm2": prm.bending_stiffness,
+            "contact_stiffness_N_per_m": None if contact is None else contact[0],
+        }
 
     def geometry(self) -> SceneGeometry:
         """The scene's declared geometry."""
@@ -892,6 +926,8 @@ class PyBulletBackend:
         contact = self._thread_contact()
         if contact is not None and self.scene.suture is not None:
             self.scene.suture.soften_contacts(*contact)
+        if self.scene.suture is not None:
+            self._thread_model = self._built_thread_model()
 
     def _thread_contact(self) -> tuple[float, float] | None:
         """The thread's contact stiffness [N/m] and damping [N*s/m]: the backend's

@@ -42,7 +42,8 @@ class RunSummary:
             graspers: ``grip_slips``, the times the thread slid through a grasper's
             jaws, ``grip_slip_mm``, how far in all [mm], and ``grip_slips_by_robot``,
             robot -> ``{"slips", "mm"}``; with a stitcher: ``needle_stalls``, the needle
-            hand-overs that stopped short).
+            hand-overs that stopped short; with a thread: ``thread``, the thread model
+            the run was made on, ``PyBulletBackend.thread_model``).
         knot: the ground-truth knot evaluation: one entry (a dict with ``type``,
             ``determinant``, ``v2``, ``v3``, ``seated``, ``post_straight``, ``lay``, ...),
             a list of them when the thread has several stitches (one per stitch), or
