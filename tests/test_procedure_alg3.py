@@ -325,8 +325,8 @@ def test_the_square_knot_passes_retract_mirror_to_its_mirrored_throw() -> None:
     from suture_engine.runtime.run import load_plan
 
     for sets, target in [
-        (["algorithm=3", "retract_mirror=true"], (0.0, 20e-3, 3e-3)),
-        (["algorithm=3"], (20e-3, 0.0, 3e-3)),
+        (["algorithm=3"], (0.0, 20e-3, 3e-3)),  # the default since 2026-12-07
+        (["algorithm=3", "retract_mirror=false"], (20e-3, 0.0, 3e-3)),
     ]:
         _, plan = load_plan(PROC.parent / "square-knot.yaml", sets)
         mirrored: Any = plan.steps["mirrored-knot.draw-tail"].make_skill().params
@@ -793,7 +793,8 @@ def test_reload_cuts_the_thread_after_registration_and_loads_one_where_the_start
     for params, on in (
         ({"algorithm": 3, "register": True, "reload": True}, True),
         ({"algorithm": 2, "register": True, "reload": True}, True),
-        ({"algorithm": 3, "reload": True}, False),
+        ({"algorithm": 3, "register": False, "reload": True}, False),
+        ({"algorithm": 3, "reload": True}, True),  # algorithm 3 registers by default
         ({"algorithm": 3, "register": True}, False),
         ({}, False),
     ):
@@ -870,7 +871,7 @@ def test_the_turned_throws_clear_jaws_locks_once_the_loop_catches_on_the_arm(ali
     keeps the throw's ``max_tension``."""
     from suture_engine.runtime.plan import compile_procedure
 
-    params = {"algorithm": 3, "align_mirror": align}
+    params = {"algorithm": 3, "align_mirror": align, "retract_mirror": False}
     proc: Any = load_procedure(ROOT / "procedures" / "square-knot.yaml", params=params)
     step = compile_procedure(proc).steps["mirrored-knot.clear-jaws"]
     assert step.enabled
@@ -893,7 +894,7 @@ def test_a_loop_caught_in_clear_jaws_is_retried_once_with_the_throws_own_moves(
     from suture_engine.runtime.automaton import Then
     from suture_engine.runtime.plan import compile_procedure
 
-    params = {"algorithm": 3, "align_mirror": align}
+    params = {"algorithm": 3, "align_mirror": align, "retract_mirror": False}
     proc: Any = load_procedure(ROOT / "procedures" / "square-knot.yaml", params=params)
     steps = compile_procedure(proc).steps
     sub = proc.states["mirrored-knot"].use.states
@@ -931,7 +932,7 @@ def test_a_loop_caught_in_clear_jaws_is_retried_once_with_the_throws_own_moves(
     [
         ("knot-algorithm-3.yaml", {"stitch": False}, True),
         ("knot-algorithm-3.yaml", {"stitch": False, "check_throw": False}, False),
-        ("square-knot.yaml", {"algorithm": 3}, True),
+        ("square-knot.yaml", {"algorithm": 3, "retract_mirror": False}, True),
         ("square-knot.yaml", {"algorithm": 3, "align_mirror": False}, True),
         ("square-knot.yaml", {"algorithm": 3, "check_throw": False}, False),
     ],
@@ -1215,7 +1216,7 @@ seeds 1 (0.027 N), 2 (0.041 N) and 8 (0.037 N), the issue's draw 11 registered (
 def test_the_kept_up_mirrored_tighten_needs_the_tail_already_pulling() -> None:
     """The mirrored throw with ``align_mirror``, the held end kept up and ``check_throw``
     starts its tighten only if the grasper's tail already pulls (``held_at_start``,
-    between the stored false claims and squares); lowered (the default: there the tail
+    between the stored false claims and squares); lowered (the throw's default: there the tail
     lies slack on squares too, 0.042 N on unperturbed seed 1's), the first throw, the
     unaligned throw, the lay pull and the unchecked throw do not check it. The square knot
     passes it on."""
@@ -1239,7 +1240,14 @@ def test_the_kept_up_mirrored_tighten_needs_the_tail_already_pulling() -> None:
     held = load_procedure(PROC, params=kept).states["tighten"].params.held_at_start
     assert TIGHTEN_FALSE_CLAIMS_MOST_N < held < TIGHTEN_SQUARES_LEAST_N
     up = ["algorithm=3", "lift_end=true", "lower_end=false"]
-    for sets, on in [(up, True), (["algorithm=3"], False), ([*up, "check_throw=false"], False)]:
+    down = ["algorithm=3", "lift_end=false", "lower_end=true"]  # the defaults before 2026-12-07
+    cases = [
+        (up, True),
+        (["algorithm=3"], True),
+        (down, False),
+        ([*up, "check_throw=false"], False),
+    ]
+    for sets, on in cases:
         _, plan = load_plan(PROC.parent / "square-knot.yaml", sets)
         mirrored = plan.steps["mirrored-knot.tighten"].make_skill().params.held_at_start
         first = plan.steps["simple-knot.tighten"].make_skill().params.held_at_start
@@ -1354,13 +1362,13 @@ def test_lift_end_lifts_the_held_end_before_the_turn_and_align_jaws_lowers_it(
 def test_the_square_knot_passes_lift_end_to_its_mirrored_throw() -> None:
     from suture_engine.runtime.run import load_plan
 
-    for sets, lifted in [(["algorithm=3", "lift_end=true"], True), (["algorithm=3"], False)]:
+    for sets, lifted in [(["algorithm=3"], True), (["algorithm=3", "lift_end=false"], False)]:
         _, plan = load_plan(PROC.parent / "square-knot.yaml", sets)
         assert plan.steps["mirrored-knot.lift-end"].enabled is lifted, sets
         assert not plan.steps["simple-knot.lift-end"].enabled, sets
     for sets, lowered in [
-        (["algorithm=3", "lift_end=true"], True),
-        (["algorithm=3", "lift_end=true", "lower_end=false"], False),
+        (["algorithm=3", "lower_end=true"], True),
+        (["algorithm=3"], False),  # kept up by default since 2026-12-07
     ]:
         _, plan = load_plan(PROC.parent / "square-knot.yaml", sets)
         down = plan.steps["mirrored-knot.align-jaws"].make_skill().params.target

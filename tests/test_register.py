@@ -159,8 +159,10 @@ def test_the_square_knot_registers_first_on_the_square_bench_with_posts() -> Non
     assert validate_file(path, params={"register": True}) == []
     # algorithm 3 registers on the bent-tip bench with its posts
     alg3 = load_procedure(path, params={"register": True, "algorithm": 3})
-    bare = load_procedure(path, params={"algorithm": 3})
+    bare = load_procedure(path, params={"algorithm": 3, "register": False})
     assert bare.scene.posts == {} and sorted(alg3.scene.posts) == sorted(SCENE.posts)
+    # and by default since 2026-12-07
+    assert load_procedure(path, params={"algorithm": 3}).scene.posts == alg3.scene.posts
     assert alg3.scene.suture == bare.scene.suture and alg3.scene.robots == bare.scene.robots
     assert validate_file(path, params={"register": True, "algorithm": 3}) == []
 
