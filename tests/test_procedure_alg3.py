@@ -21,6 +21,7 @@ import pytest
 from scipy.optimize import minimize
 from scipy.spatial.transform import Rotation
 
+from backends.pybullet.suture import SutureParams
 from skills.tool_path import ik_world, tip_world
 from skills.wrap import Wrap, WrapParams, segment_gap
 from suture_engine.language.loader import load_procedure
@@ -427,12 +428,23 @@ def test_the_half_turn_keeps_the_shafts_apart() -> None:
     assert skill._failure == ""
 
 
-SPRINGING = ("--thread-damping", "0.5 1/s", "--thread-weight", "0.1 g/m")
-"""The thread model algorithm 3's runs before 2026-12-07 were made on (the language's
-defaults, 0.5 /s keeping 0.1 g/m; its benches now declare the damped thread): the slow
-runs below that check those throws keep it."""
-SPRINGING_OPTIONS = {"thread_damping": 0.5, "thread_weight": 1e-4}
-""":data:`SPRINGING` as backend options [1/s, kg/m]."""
+SPRINGING_OPTIONS = {
+    "thread_damping": SutureParams.linear_damping,
+    "thread_weight": SutureParams.real_mass_per_length,
+}
+"""The thread model algorithm 3's runs before 2026-12-07 were made on, as backend options
+[1/s, kg/m]: the simulated thread's defaults (0.5 /s keeping 0.1 g/m), which a scene
+without ``suture.damping`` and ``suture.weight`` gets; its benches now declare the
+damped thread. The slow runs below that check those throws keep it."""
+SPRINGING = tuple(
+    arg
+    for flag, option in (
+        ("--thread-damping", "thread_damping"),
+        ("--thread-weight", "thread_weight"),
+    )
+    for arg in (flag, repr(SPRINGING_OPTIONS[option]))
+)
+""":data:`SPRINGING_OPTIONS` as ``suture run`` flags (bare numbers are SI)."""
 EARLIER = ("register=false", "lift_end=false", "lower_end=true", "retract_mirror=false")
 """Algorithm 3's square-knot defaults before 2026-12-07."""
 

@@ -777,8 +777,8 @@ class PyBulletBackend:
 
     def thread_model(self) -> dict[str, Any] | None:
         """The simulated thread's model as the run last built it (kept once the thread
-        is cut), for ``summary.json``: its
-        ``capsules`` (how many), ``capsule_mm`` (each one's length [mm]),
+        is cut), for ``summary.json``: ``capsules`` (how many), ``capsule_mm`` (each
+        one's length [mm]),
         ``damping_per_s`` (its free motion's damping rate [1/s]), ``weight_g_per_m``
         (the weight it keeps [g/m]; the rest of its simulated mass is cancelled),
         ``simulated_g_per_m`` (its simulated mass [g/m]), ``smooth_joints``,
