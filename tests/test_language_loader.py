@@ -136,6 +136,30 @@ def test_interrupted_suture_ties_three_stitches_5mm_apart() -> None:
     assert xs[1] - xs[0] == pytest.approx(0.005) and xs[2] - xs[1] == pytest.approx(0.005)
 
 
+def test_interrupted_suture_by_algorithm_3_registers_once_on_its_bench() -> None:
+    """``algorithm=3``: algorithm 3's bench with the calibration posts; the first square
+    registers the bases and takes the posts away, the later two do not register, and
+    their mirrored holders do not go round the posts that are gone."""
+    from suture_engine.runtime.plan import compile_procedure
+
+    proc = load_procedure(PROCEDURES / "interrupted-suture.yaml", params={"algorithm": 3})
+    assert proc.scene is not None and proc.scene.name == "bench-bent-tip-posts"
+    assert proc.scene.posts  # the posts are in the scene the run starts with
+    assert proc.scene.robots["endobot_2"].tool == "bent-tip-grasper"
+    plan = compile_procedure(proc)
+    assert plan.steps["knot-2.register.grasper"].enabled
+    assert plan.steps["knot-2.register.remove-posts"].enabled
+    for k in (1, 3):
+        assert not plan.steps[f"knot-{k}.register"].enabled
+        # posts in the scene, but taken away before: the holder goes straight up
+        assert not plan.steps[f"knot-{k}.mirrored-knot.clear-post"].enabled
+    # algorithm 2 (the default) keeps its bench and registers nowhere
+    two = compile_procedure(load_procedure(PROCEDURES / "interrupted-suture.yaml"))
+    assert not any(
+        name.endswith("remove-posts") and step.enabled for name, step in two.steps.items()
+    )
+
+
 def test_shared_control_line_uses_table_6_1() -> None:
     proc = load_procedure(PROCEDURES / "shared-control-line.yaml")
     params = proc.states["along-line"].params
