@@ -32,6 +32,19 @@ def test_bundled_procedures_validate() -> None:
     assert result.stdout.count(": valid") == len(BUNDLED)
 
 
+def test_a_state_turned_off_by_when_is_not_checked_against_the_scenes_tools() -> None:
+    """The interrupted suture by algorithm 3 runs on the bent-tip bench, where the
+    secure-knot states (algorithm 2's hook and stitcher) are turned off: valid. Turned on
+    (``secure=true``) they are checked, and their tools do not match the scene."""
+    off = _suture("validate", "--set", "algorithm=3", "procedures/interrupted-suture.yaml")
+    assert off.returncode == 0, off.stdout + off.stderr
+    on = _suture(
+        "validate", "--set", "algorithm=3", "--set", "secure=true",
+        "procedures/interrupted-suture.yaml",
+    )  # fmt: skip
+    assert on.returncode != 0 and "tool-mismatch" in on.stdout, on.stdout + on.stderr
+
+
 def test_json_output_of_a_valid_file_is_an_empty_list() -> None:
     result = _suture("validate", "--format", "json", "procedures/stitch.yaml")
     assert result.returncode == 0 and json.loads(result.stdout) == []

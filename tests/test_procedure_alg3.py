@@ -1279,6 +1279,7 @@ def test_the_kept_up_mirrored_tighten_needs_the_tail_already_pulling() -> None:
         ({**kept, "lower_end": True}, None),
         ({**kept, "lift_end": False, "lower_end": True}, None),
         ({**kept, "check_throw": False}, None),
+        ({**kept, "check_held": False}, None),
         ({**kept, "lay_pull": True}, None),
         ({**kept, "align_mirror": False}, None),
         ({"stitch": False, "lift_end": True, "lower_end": False}, None),
@@ -1296,6 +1297,7 @@ def test_the_kept_up_mirrored_tighten_needs_the_tail_already_pulling() -> None:
         (["algorithm=3"], True),
         (down, False),
         ([*up, "check_throw=false"], False),
+        ([*up, "check_held=false"], False),
     ]
     for sets, on in cases:
         _, plan = load_plan(PROC.parent / "square-knot.yaml", sets)

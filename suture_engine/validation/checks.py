@@ -452,13 +452,13 @@ def _state_checks(proc: Procedure, state: LoadedState, on: bool = True) -> list[
                     (*where, name),
                 )
             )
-    if scene is not None:
+    # a state that `when:` turns off for these parameters (or in a sub-procedure it turns
+    # off) is not checked against the scene, which the same parameters may choose (its
+    # tools, its reach, the skill's own checks): validate with --set to check it on
+    if scene is not None and on and state.enabled:
         out.extend(_tool_check(proc, params, cls, src, where))
         out.extend(_reach_checks(proc, state, params, src, where))
     found: list[Problem] = []
-    # a state that `when:` turns off for these parameters (or in a sub-procedure it turns
-    # off) is not checked against the scene, which the same parameters may choose:
-    # validate with --set to check it on
     try:
         if on and state.enabled:
             found = cls.check(params, scene)
