@@ -1269,7 +1269,7 @@ def test_the_kept_up_mirrored_tighten_needs_the_tail_already_pulling() -> None:
     between the stored false claims and squares); lowered (the throw's default: there the tail
     lies slack on squares too, 0.042 N on unperturbed seed 1's), the first throw, the
     unaligned throw, the lay pull and the unchecked throw do not check it. The square knot
-    passes it on."""
+    passes it on with ``check_held``, off by default there since 2026-12-07."""
     from suture_engine.runtime.run import load_plan
 
     kept = {"second": True, "mirror": True, "stitch": False, "align_mirror": True,
@@ -1292,12 +1292,14 @@ def test_the_kept_up_mirrored_tighten_needs_the_tail_already_pulling() -> None:
     assert TIGHTEN_FALSE_CLAIMS_MOST_N < held < TIGHTEN_SQUARES_LEAST_N
     up = ["algorithm=3", "lift_end=true", "lower_end=false"]
     down = ["algorithm=3", "lift_end=false", "lower_end=true"]  # the defaults before 2026-12-07
+    held_on = [*up, "check_held=true"]  # off by default since 2026-12-07 (square-knot.yaml)
     cases = [
-        (up, True),
-        (["algorithm=3"], True),
-        (down, False),
-        ([*up, "check_throw=false"], False),
-        ([*up, "check_held=false"], False),
+        (held_on, True),
+        ([*held_on, "algorithm=3"], True),
+        (up, False),
+        (["algorithm=3"], False),
+        ([*down, "check_held=true"], False),
+        ([*held_on, "check_throw=false"], False),
     ]
     for sets, on in cases:
         _, plan = load_plan(PROC.parent / "square-knot.yaml", sets)
