@@ -351,41 +351,31 @@ def test_a_backend_without_threads_fails_the_cut_step(tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-def test_the_interrupted_suture_ties_three_square_knots_on_seed_12(tmp_path: Path) -> None:
-    """The bundled interrupted suture, seed 12 (about 16 min): three stitches 5 mm apart,
-    each tied with a square knot that lies square and binds its own stitch, each suture
-    cut; the true tension stays far under the limit. (Seeds 1, 2, 3, 5 and 13 do not tie
-    all three: docs/status.md, "Interrupted suture".)"""
-    summary = run_procedure(
-        ROOT / "procedures" / "interrupted-suture.yaml", out=tmp_path, seed=12, max_time_s=700.0
-    ).summary
-    assert summary.outcome == "succeeded", summary.last_fault
-    knots = summary.knot
-    assert isinstance(knots, list) and len(knots) == 3
-    for k in knots:
-        assert (k["type"], k["determinant"], k["v3"]) == ("square", 9, 0)
-        assert k["through_tissue"] and k["cut"] and k["post_straight"] is True
-    assert [k["thread"] for k in knots] == [2, 1, 3]  # the middle stitch first
-    stitches = summary.metrics["stitches"]
-    assert stitches["site"] == ["1", "2", "3"]
-    assert stitches["spacing_mean_mm"] == pytest.approx(5.0, abs=0.25)
-    assert summary.metrics["peak_true_tension_N"] < 0.5 * summary.tension_limit_N
-
-
-@pytest.mark.slow
-def test_the_interrupted_suture_by_algorithm_3_ties_three_squares_on_seed_2(
+@pytest.mark.parametrize(
+    ("sets", "seed", "max_time_s", "lies_square", "spacing_mm"),
+    [([], 12, 700.0, True, 0.25), (["algorithm=3"], 2, 800.0, False, 0.5)],
+    ids=["algorithm-2-seed-12", "algorithm-3-seed-2"],
+)
+def test_the_interrupted_suture_ties_three_square_knots(
     tmp_path: Path,
+    sets: list[str],
+    seed: int,
+    max_time_s: float,
+    lies_square: bool,
+    spacing_mm: float,
 ) -> None:
-    """``algorithm=3``, seed 2 (about 26 min): the bases registered once, then three
-    squares by algorithm 3 on the damped thread, each binding its own stitch and cut; the
-    true tension far under the limit. (Seed 1 locks at stitch 3 on a missed mirrored throw:
-    docs/status.md, "By algorithm 3".)"""
+    """The bundled interrupted suture: three stitches 5 mm apart, each tied with a square
+    knot that binds its own stitch, each suture cut; the true tension stays far under the
+    limit. Algorithm 2 (the default), seed 12 (about 16 min): every square lies square.
+    Algorithm 3, seed 2 (about 26 min, the bases registered once, the damped thread its
+    bench declares). (Algorithm 2's seeds 1, 2, 3, 5 and 13 and algorithm 3's seed 1 do not
+    tie all three: docs/status.md, "Interrupted suture".)"""
     summary = run_procedure(
         ROOT / "procedures" / "interrupted-suture.yaml",
         out=tmp_path,
-        seed=2,
-        max_time_s=800.0,
-        sets=["algorithm=3"],
+        seed=seed,
+        max_time_s=max_time_s,
+        sets=sets,
     ).summary
     assert summary.outcome == "succeeded", summary.last_fault
     knots = summary.knot
@@ -393,10 +383,11 @@ def test_the_interrupted_suture_by_algorithm_3_ties_three_squares_on_seed_2(
     for k in knots:
         assert (k["type"], k["determinant"], k["v3"]) == ("square", 9, 0)
         assert k["through_tissue"] and k["cut"]
+        assert k["post_straight"] is True or not lies_square
     assert [k["thread"] for k in knots] == [2, 1, 3]  # the middle stitch first
-    assert summary.metrics["stitches"]["site"] == ["1", "2", "3"]
-    assert summary.metrics["stitches"]["spacing_mean_mm"] == pytest.approx(5.0, abs=0.5)
-    assert summary.metrics["thread"]["damping_per_s"] == pytest.approx(20.0)
+    stitches = summary.metrics["stitches"]
+    assert stitches["site"] == ["1", "2", "3"]
+    assert stitches["spacing_mean_mm"] == pytest.approx(5.0, abs=spacing_mm)
     assert summary.metrics["peak_true_tension_N"] < 0.5 * summary.tension_limit_N
 
 
