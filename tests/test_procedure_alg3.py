@@ -1295,7 +1295,6 @@ def test_the_kept_up_mirrored_tighten_needs_the_tail_already_pulling() -> None:
     held_on = [*up, "check_held=true"]  # off by default since 2026-12-07 (square-knot.yaml)
     cases = [
         (held_on, True),
-        ([*held_on, "algorithm=3"], True),
         (up, False),
         (["algorithm=3"], False),
         ([*down, "check_held=true"], False),
