@@ -830,6 +830,12 @@ def test_reload_cuts_the_thread_after_registration_and_loads_one_where_the_start
     assert over.roll == 0.0
     order = [proc.states[n].on["done"] for n in ("register", *names)]
     assert order == [*names, "simple-knot"]
+    # reload_over=false: the thread is loaded where the registration left the stitcher
+    steps = compile_procedure(
+        load_procedure(square, params={"register": True, "reload": True, "reload_over": False})
+    ).steps
+    assert [steps[n].enabled for n in names] == [True, False, True]
+    assert steps["reload-cut"].on_done == "reload-over"  # passed over, on to the load
 
 
 SLIDE_OFF_TIED_LEAST_MM = 29.7
