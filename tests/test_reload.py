@@ -368,8 +368,8 @@ def test_the_interrupted_suture_ties_three_square_knots(
     knot that binds its own stitch, each suture cut; the true tension stays far under the
     limit. Algorithm 2 (the default), seed 12 (about 16 min): every square lies square.
     Algorithm 3, seed 2 (about 26 min, the bases registered once, the damped thread its
-    bench declares). (Algorithm 2's seeds 1, 2, 3, 5 and 13 and algorithm 3's seed 1 do not
-    tie all three: docs/status.md, "Interrupted suture".)"""
+    bench declares). (Algorithm 2's seeds 1, 2, 3, 5 and 13 and algorithm 3's seeds 1, 3
+    and 4 do not tie all three: docs/status.md, "Interrupted suture".)"""
     summary = run_procedure(
         ROOT / "procedures" / "interrupted-suture.yaml",
         out=tmp_path,
