@@ -8,7 +8,7 @@ from pydantic import Field
 
 from skills.base import Skill, SkillParams
 from suture_engine.language.refs import PointRef, RoleRef
-from suture_engine.language.units import Force, Length, Position
+from suture_engine.language.units import Duration, Force, Length, Position
 
 __all__ = ["Grasp", "GraspParams"]
 
@@ -32,6 +32,11 @@ class GraspParams(SkillParams):
     """Tip position tolerance at the goal [m]; ``None`` uses the skill's
     :attr:`TOLERANCE`. A looser one suits a backend whose position control leaves
     a steady error (e.g. heavier mounted tools)."""
+    dwell: Duration = Field(default=0.0, ge=0.0, le=2.0)
+    """How long the tip is held at the goal after the jaw reports closed [s]. A
+    pneumatic jaw reports closed when its valve switches, before the jaws have travelled
+    shut (0.1 s on the surgical backend's graspers); a move that starts at once can carry
+    them off what they close on. 0 ends the skill as the jaw reports closed."""
 
 
 class Grasp(Skill):
@@ -40,7 +45,7 @@ class Grasp(Skill):
     The tip follows the straight segment from where it is to ``target + offset``
     (minimum-jerk timing at :attr:`SPEED`), with the jaw commanded open; then the
     jaw is commanded closed and the skill succeeds when the tool reports it
-    closed. It fails when the path leaves the joint limits, when the tip is not
+    closed, after holding the tip at the goal for ``dwell``. It fails when the path leaves the joint limits, when the tip is not
     within :attr:`TOLERANCE` of the goal :attr:`SETTLE_S` after the path, or when
     the jaw does not report closed within :attr:`CLOSE_S`. The grip force is not
     forwarded: the runtime's tool command carries open/closed only.
@@ -68,6 +73,7 @@ class Grasp(Skill):
         self._failure = ""
         self._t0 = 0.0
         self._t_close: float | None = None
+        self._t_closed: float | None = None
 
     def goal(self, ctx: Any) -> Any:
         """The grasp point in the world frame [m]."""
@@ -104,6 +110,7 @@ class Grasp(Skill):
         self._base = ctx.base_poses.get(self._robot)
         self._t0 = ctx.t0
         self._t_close = None
+        self._t_closed = None
         q0 = np.array(ctx.start.robots[self._robot].q)
         a = tip_world(q0, self._base)
         self._goal = self.goal(ctx)
@@ -158,8 +165,13 @@ class Grasp(Skill):
             else:
                 return StepResult(cmd)
         cmd = Command({self._robot: RobotCommand.position(q, None, ToolCommand(jaw_closed=True))})
-        if obs.robots[self._robot].tool.jaw_closed:
-            return StepResult(cmd, SkillStatus.SUCCESS)
+        if self._t_closed is None and obs.robots[self._robot].tool.jaw_closed:
+            self._t_closed = obs.t
+        if self._t_closed is not None:  # closed: hold the goal for the dwell, then done
+            p = self.params
+            assert isinstance(p, GraspParams)
+            done = obs.t - self._t_closed >= p.dwell
+            return StepResult(cmd, SkillStatus.SUCCESS if done else SkillStatus.RUNNING)
         if obs.t - self._t_close >= self.CLOSE_S:
             return StepResult(cmd, SkillStatus.FAILURE, "the jaw did not report closed")
         return StepResult(cmd)

@@ -265,6 +265,27 @@ def test_grasp_moves_to_the_point_then_closes(scene: Any) -> None:
     assert np.max(np.linalg.norm(off, axis=1)) < 1e-6
 
 
+def test_grasp_dwells_at_the_goal_once_the_jaw_reports_closed(scene: Any) -> None:
+    """With ``dwell`` the skill keeps commanding the goal, jaw closed, for that long after
+    the jaw first reports closed; without it, it ends on that tick."""
+    params = {"robot": "grasper", "target": "entry_2", "offset": (0, -0.01, 0.004)}
+    plain = Run(Grasp(params), scene, *start_pose(scene))
+    held = Run(Grasp({**params, "dwell": 0.25}), scene, *start_pose(scene))
+    assert plain.status is SkillStatus.SUCCESS and held.status is SkillStatus.SUCCESS
+
+    def first_closed(run: Run) -> float:
+        return next(o.t for o in run.obs if o.robots["endobot_2"].tool.jaw_closed)
+
+    assert plain.obs[-1].t == pytest.approx(first_closed(plain))
+    assert held.obs[-1].t - first_closed(held) == pytest.approx(0.25, abs=DT + 1e-9)
+    assert first_closed(held) == pytest.approx(first_closed(plain))
+    # through the dwell: the jaw commanded closed, the tip commanded where it closed
+    after = [r for r, o in zip(held.results, held.obs, strict=True) if o.t >= first_closed(held)]
+    assert all(r.command.robots["endobot_2"].tool.jaw_closed for r in after)
+    qs = np.array([r.command.robots["endobot_2"].q for r in after])
+    assert np.max(np.abs(qs - qs[0])) < 1e-12
+
+
 def test_grasp_fails_when_the_jaw_never_closes(scene: Any) -> None:
     qs, tools = start_pose(scene)
     run = Run(Grasp({"robot": "grasper"}), scene, qs, tools, stuck_tools=True)
