@@ -45,9 +45,10 @@ class Grasp(Skill):
     The tip follows the straight segment from where it is to ``target + offset``
     (minimum-jerk timing at :attr:`SPEED`), with the jaw commanded open; then the
     jaw is commanded closed and the skill succeeds when the tool reports it
-    closed, after holding the tip at the goal for ``dwell``. It fails when the path leaves the joint limits, when the tip is not
-    within :attr:`TOLERANCE` of the goal :attr:`SETTLE_S` after the path, or when
-    the jaw does not report closed within :attr:`CLOSE_S`. The grip force is not
+    closed, after holding the tip at the goal for ``dwell``. It fails when the path
+    leaves the joint limits, when the tip is not within :attr:`TOLERANCE` of the goal
+    :attr:`SETTLE_S` after the path, or when the jaw does not report closed within
+    :attr:`CLOSE_S`. The grip force is not
     forwarded: the runtime's tool command carries open/closed only.
     """
 

@@ -1468,3 +1468,25 @@ def test_lift_end_keeps_the_turn_from_pressing_the_held_end_into_the_pad(tmp_pat
         )  # fmt: skip
     assert _align_arm_lift_N(runs["false"][1]) > 3.0
     assert _align_arm_lift_N(runs["true"][1]) < 2.0
+
+
+def test_grab_dwell_reaches_both_throws_tail_grasps_for_every_algorithm() -> None:
+    """``grab_dwell`` (square-knot.yaml) becomes the ``dwell`` of each throw's tail grasp,
+    the algorithm's ``grab-tail``; by default it is 0 (the skill ends as the jaw reports
+    closed). Algorithm 2's mirrored throw keeps the first throw's grasp (its step is off)."""
+    from suture_engine.runtime.plan import compile_procedure
+
+    square = ROOT / "procedures" / "square-knot.yaml"
+    for algorithm, throws in (
+        (1, ("simple-knot",)),
+        (2, ("simple-knot",)),
+        (3, ("simple-knot", "mirrored-knot")),
+    ):
+        for params, dwell in (({}, 0.0), ({"grab_dwell": "0.2 s"}, 0.2)):
+            plan = compile_procedure(
+                load_procedure(square, params={"algorithm": algorithm, **params})
+            )
+            for throw in throws:
+                step = plan.steps[f"{throw}.grab-tail"]
+                assert step.enabled, (algorithm, throw)
+                assert step.make_skill().params.dwell == pytest.approx(dwell), (algorithm, params)
