@@ -160,6 +160,29 @@ def test_interrupted_suture_by_algorithm_3_registers_once_on_its_bench() -> None
     )
 
 
+def test_interrupted_suture_by_algorithm_3_holds_every_tail_grasp_until_the_jaws_shut() -> None:
+    """``algorithm=3``: each square's two tail grasps dwell 0.2 s after the jaw reports
+    closed (``grab_dwell``); algorithm 2's grasps do not, and ``--set grab_dwell`` wins."""
+    from suture_engine.runtime.plan import compile_procedure
+
+    def dwells(params: dict[str, object]) -> dict[str, float]:
+        plan = compile_procedure(
+            load_procedure(PROCEDURES / "interrupted-suture.yaml", params=params)
+        )
+        return {
+            name: step.make_skill().params.dwell  # type: ignore[attr-defined]
+            for name, step in plan.steps.items()
+            if name.endswith("grab-tail") and step.enabled
+        }
+
+    three = dwells({"algorithm": 3})
+    throws = ("simple-knot", "mirrored-knot")
+    assert set(three) == {f"knot-{k}.{t}.grab-tail" for k in (1, 2, 3) for t in throws}
+    assert sorted(three.values()) == pytest.approx([0.2] * 6)
+    assert set(dwells({}).values()) == {0.0}
+    assert set(dwells({"algorithm": 3, "grab_dwell": "0 s"}).values()) == {0.0}
+
+
 def test_shared_control_line_uses_table_6_1() -> None:
     proc = load_procedure(PROCEDURES / "shared-control-line.yaml")
     params = proc.states["along-line"].params
