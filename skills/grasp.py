@@ -48,8 +48,8 @@ class Grasp(Skill):
     closed, after holding the tip at the goal for ``dwell``. It fails when the path
     leaves the joint limits, when the tip is not within :attr:`TOLERANCE` of the goal
     :attr:`SETTLE_S` after the path, or when the jaw does not report closed within
-    :attr:`CLOSE_S`. The grip force is not
-    forwarded: the runtime's tool command carries open/closed only.
+    :attr:`CLOSE_S`. The grip force is not forwarded: the runtime's tool command
+    carries open/closed only.
     """
 
     name: ClassVar[str] = "grasp"
