@@ -77,6 +77,35 @@ def test_tool_commands_drive_the_simulated_tools() -> None:
         be.close()
 
 
+def test_the_graspers_jaw_reading_is_its_valve_and_the_jaws_shut_one_travel_later() -> None:
+    """The grasper is pneumatic (thesis 4.4: commanded open or closed, no jaw sensor): its
+    measured ``jaw_closed`` turns true on the tick the jaw is commanded shut, while the
+    jaws themselves take the tool's travel time to close on the thread. A skill that acts
+    on a grasp must wait that travel (``grasp``'s ``dwell``)."""
+    be = SurgicalPyBulletBackend()
+    try:
+        be.reset(load_procedure(BENCH).scene, 0)
+        assert be.scene is not None
+        grasper = be.scene.tools["endobot_2"]
+        assert isinstance(grasper, Grasper) and grasper.holding  # the tail-held start
+        _hold(be, {"endobot_2": ToolCommand(jaw_closed=False)}, 400)
+        assert not be.observe().robots["endobot_2"].tool.jaw_closed and not grasper.holding
+        # close it where it let go: the thread's end still lies between the jaws
+        _hold(be, {"endobot_2": ToolCommand(jaw_closed=True)}, 1)
+        assert be.observe().robots["endobot_2"].tool.jaw_closed
+        assert grasper.state is JawState.CLOSING and not grasper.holding
+        ticks = 1
+        while not grasper.holding:
+            assert be.observe().robots["endobot_2"].tool.jaw_closed
+            _hold(be, {"endobot_2": ToolCommand(jaw_closed=True)}, 1)
+            ticks += 1
+            assert ticks <= 2 * round(grasper.travel_time / be.dt)
+        assert grasper.state is JawState.CLOSED
+        assert ticks == pytest.approx(round(grasper.travel_time / be.dt), abs=1)
+    finally:
+        be.close()
+
+
 def test_ground_truth_has_the_thread_and_observations_do_not(scene_model) -> None:  # type: ignore[no-untyped-def]
     be = SurgicalPyBulletBackend()
     try:

@@ -484,7 +484,9 @@ class PyBulletBackend:
         """The tool's state as its sensors report it, from the simulated tool.
 
         A stitcher reports the jaw that holds the needle closed on it and the other one
-        open, as the skills read it (``jaw_closed`` is jaw 1, the -x jaw).
+        open, as the skills read it (``jaw_closed`` is jaw 1, the -x jaw). A grasper
+        reports its valve: closed from the tick it is commanded shut, while the jaws
+        are still travelling (``Grasper.travel_time``); it has no jaw sensor.
         """
         from backends.pybullet.tools import Grasper, JawState, Stitcher
 

@@ -70,8 +70,13 @@ class ToolState:
 
     Attributes:
         kind: tool type ("grasper", "hook-grasper", "bent-tip-grasper", "stitcher").
-        jaw_closed: whether the (first) jaw is closed.
-        jaw2_closed: whether the stitcher's second jaw is closed (False otherwise).
+        jaw_closed: a grasper's jaw valve: the EndoBot's tools are pneumatic with no
+            jaw sensor (thesis 4.4), so it turns true on the tick the jaw is commanded shut,
+            and the jaws reach the thread one travel time later (0.1 s on the simulated
+            grasper); a skill that acts on a grasp waits that travel (``grasp``'s
+            ``dwell``). A stitcher's: its first jaw holds the needle, both jaws shut.
+        jaw2_closed: a stitcher's second jaw holds the needle, both jaws shut (False for
+            other tools).
         hook_extension: flexible-hook extension [m] (0 when retracted or absent).
         bend: the bent-tip grasper's universal joint angles from its encoders, about the
             shaft's x then about the turned y [rad, rad] ((0, 0): straight or absent).
