@@ -375,7 +375,7 @@ def test_the_interrupted_suture_ties_three_square_knots(
     seed 2 (about 23 min; stitch 1's square lies as two half hitches). Algorithm 3, seeds
     2 and 3 (about 30 min each; the bases registered once, the damped thread its bench
     declares, the tail grasps held until the jaws are shut: without that, seed 3's third
-    grasp held nothing). (Algorithm 2's seeds 1, 3, 5 and 13 and algorithm 3's seed 1 do
+    grasp held nothing). (Algorithm 2's seeds 0, 1, 3, 5 and 13 and algorithm 3's seed 1 do
     not tie all three: docs/status.md, "Interrupted suture".)"""
     summary = run_procedure(
         ROOT / "procedures" / "interrupted-suture.yaml",
