@@ -127,6 +127,65 @@ def test_a_thread_that_went_in_at_the_exit_is_matched_both_ways() -> None:
     assert m["spacing_mean_mm"] is None and m["spacing_sd_mm"] is None
 
 
+def _parabola_bite(step: float, offset: float) -> tuple[np.ndarray, float]:
+    """A bite z = -2 mm + y^2 / 4 mm sampled every ``step`` from ``offset``: the thread
+    crosses the plane at y = -/+ sqrt(8) mm, between samples."""
+    y = np.arange(-6 * MM + offset, 6 * MM, step)
+    return np.c_[np.zeros_like(y), y, -2 * MM + y**2 / (4 * MM)], math.sqrt(8) * MM
+
+
+def test_each_pierce_point_states_its_resolution_and_the_thread_crosses_within_it() -> None:
+    # oracle: the parabola's own crossings; the spans, from the samples either side
+    for step in (3.5 * MM, 1.0 * MM, 0.25 * MM):
+        pts, y0 = _parabola_bite(step, 0.37 * MM)
+        (bite,) = find_bites(pts, SURFACE, NORMAL)
+        for pierce, span, y_true in (
+            (bite.entry, bite.entry_span, -y0),
+            (bite.exit, bite.exit_span, y0),
+        ):
+            k = int(np.searchsorted(pts[:, 1], y_true))  # the samples either side: k-1, k
+            assert span == pytest.approx(float(np.linalg.norm(pts[k] - pts[k - 1])), rel=1e-12)
+            error = float(np.linalg.norm(np.asarray(pierce) - (0.0, y_true, 0.0)))
+            assert 0.0 < error < span
+        m = stitch_metrics([bite], {"entry": (0.0, -y0, 0.0), "exit": (0.0, y0, 0.0)})
+        assert m["entry_error_mm"][0] < m["entry_resolution_mm"][0]
+        assert m["entry_resolution_mm"] == [pytest.approx(1e3 * bite.entry_span, abs=1e-4)]
+        assert m["exit_resolution_mm"] == [pytest.approx(1e3 * bite.exit_span, abs=1e-4)]
+        assert m["spacing_resolution_mm"] is None
+    # the coarse thread's points lie a capsule apart: 3.5 mm of resolution, not 0.25 mm
+    assert (
+        find_bites(_parabola_bite(3.5 * MM, 0.37 * MM)[0], SURFACE, NORMAL)[0].entry_span > 3.5 * MM
+    )
+
+
+def test_resolution_follows_the_pierce_point_when_the_bite_is_matched_the_other_way() -> None:
+    # in at y = -1 mm over a 2.83 mm segment, out at y = 1.5 mm over a 4.47 mm one
+    pts = np.array([[0.0, -2.0, 1.0], [0.0, 0.0, -1.0], [0.0, 1.0, -1.0], [0.0, 3.0, 3.0]]) * MM
+    (bite,) = find_bites(pts, SURFACE, NORMAL)
+    spans = [round(math.hypot(2.0, 2.0), 4), round(math.hypot(2.0, 4.0), 4)]
+    straight = stitch_metrics([bite], {"entry": (0.0, -1 * MM, 0.0), "exit": (0.0, 1.5 * MM, 0.0)})
+    swapped = stitch_metrics([bite], {"entry": (0.0, 1.5 * MM, 0.0), "exit": (0.0, -1 * MM, 0.0)})
+    assert [straight["entry_resolution_mm"][0], straight["exit_resolution_mm"][0]] == spans
+    assert [swapped["entry_resolution_mm"][0], swapped["exit_resolution_mm"][0]] == spans[::-1]
+    assert straight["entry_error_mm"] == swapped["entry_error_mm"] == [0.0]
+    # with no declared points the entry is the thread's first crossing
+    alone = stitch_metrics([bite])
+    assert alone["entry_resolution_mm"] == spans[:1] and alone["entry_error_mm"] == [None]
+
+
+def test_the_spacings_resolution_sums_half_of_each_pierce_points_span() -> None:
+    a, _ = _parabola_bite(3.5 * MM, 0.37 * MM)
+    b, _ = _parabola_bite(1.0 * MM, 0.37 * MM)
+    hop = np.array([[0.0, 6 * MM, 40 * MM], [5 * MM, -6 * MM, 40 * MM]])
+    bites = find_bites(np.vstack([a, hop, b + np.array([5 * MM, 0.0, 0.0])]), SURFACE, NORMAL)
+    assert len(bites) == 2
+    m = stitch_metrics(bites)
+    bound = sum(0.5 * (x.entry_span + x.exit_span) for x in bites)
+    assert m["spacing_resolution_mm"] == pytest.approx(1e3 * bound, abs=1e-4)
+    # oracle: the two parabolas' centres lie 5 mm apart; the sampled ones a little off it
+    assert 0.0 < abs(m["spacing_mean_mm"] - 5.0) < m["spacing_resolution_mm"]
+
+
 def test_one_knot_entry_per_stitch() -> None:
     from suture_engine.suture.knot import knot_lay
 

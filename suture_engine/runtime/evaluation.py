@@ -22,7 +22,10 @@ to skills.
 - **Stitch metrics** (as in STAR's suture evaluation): per bite the distance
   of the entry and exit pierce points from the scene's declared entry/exit
   points (the nearest declared pair, ``entry_k``/``exit_k``), the bite depth,
-  and the spacing between consecutive bites' centres, mean +- SD.
+  and the spacing between consecutive bites' centres, mean +- SD, each with its
+  resolution: a pierce point is interpolated between two centerline points (one per
+  capsule on the simulated thread, about 3.5 mm apart), so it can lie up to that
+  segment's length from where the thread crosses (``*_resolution_mm``).
 - **Knots.** One entry per stitch when there are several bites: the
   centerline is cut at the arc-length midpoints between consecutive bites
   and each piece is classified on its own (the knot tying stitch k binds the
@@ -99,6 +102,14 @@ class Bite(NamedTuple):
         depth: largest distance of the thread under the tissue plane [m].
         first: index of the first centerline point under the plane.
         last: index of the last centerline point under the plane.
+        entry_span: length of the centerline segment the entry was interpolated on [m]
+            (the distance between the two points either side of the plane). The thread
+            crosses the plane somewhere on its piece between those two points, and the
+            pierce point lies on the chord between them, so for a straight piece it lies
+            at most this far from the thread's own crossing (a bent piece: at most the
+            piece's length): the measure's resolution, not an error of the stitch. NaN
+            when not known.
+        exit_span: the same for the exit [m].
     """
 
     entry: tuple[float, float, float]
@@ -106,6 +117,8 @@ class Bite(NamedTuple):
     depth: float
     first: int
     last: int
+    entry_span: float = math.nan
+    exit_span: float = math.nan
 
 
 def _points(centerline: ArrayLike) -> FloatArray:
@@ -217,7 +230,15 @@ def find_bites(
         last = first + int(np.flatnonzero(inside[first : j + 1])[-1])
         entry = _crossing(pts[i - 1], pts[i], float(h[i - 1]), float(h[i]))
         exit_ = _crossing(pts[j], pts[j + 1], float(h[j]), float(h[j + 1]))
-        bite = Bite(entry, exit_, float(-h[first : last + 1].min()), first, last)
+        bite = Bite(
+            entry,
+            exit_,
+            float(-h[first : last + 1].min()),
+            first,
+            last,
+            float(np.linalg.norm(pts[i] - pts[i - 1])),
+            float(np.linalg.norm(pts[j + 1] - pts[j])),
+        )
         if wound is None or _crosses_wound(bite, wound, n, wound_margin, in_wound, opening):
             bites.append(bite)
     return bites
@@ -248,6 +269,10 @@ def _mean_sd(values: Sequence[float]) -> tuple[float | None, float | None]:
     return float(arr.mean()), sd
 
 
+def _mm(value: float) -> float | None:
+    return round(1e3 * value, 4) if math.isfinite(value) else None
+
+
 def stitch_metrics(
     bites: Sequence[Bite], declared: Mapping[str, Sequence[float]] | None = None
 ) -> dict[str, Any]:
@@ -262,21 +287,34 @@ def stitch_metrics(
         ``count``; per bite (lists, in order) ``entry_error_mm``, ``exit_error_mm``,
         ``bite_depth_mm`` and the matched ``site`` ("" for ``entry``/``exit``, else the
         suffix); ``spacing_mean_mm`` and ``spacing_sd_mm`` between consecutive bite
-        centres (None with fewer than two bites).
+        centres (None with fewer than two bites). Each figure comes with the
+        measure's resolution: ``entry_resolution_mm`` and ``exit_resolution_mm`` per
+        bite, the length of the centerline segment that pierce point was interpolated
+        on (:attr:`Bite.entry_span`; a bound on how far it can lie from where the
+        thread crosses, so an error under it is not resolved), and
+        ``spacing_resolution_mm``, the largest bound on one spacing (half of each
+        pierce point's span, summed over the two bites' four; None with fewer than
+        two bites). When the declared points fit a bite the other way round, its
+        entry figures are its exit's.
     """
     pairs = _declared_pairs(declared or {})
     entry_err: list[float | None] = []
     exit_err: list[float | None] = []
+    entry_res: list[float | None] = []
+    exit_res: list[float | None] = []
     sites: list[str | None] = []
     for b in bites:
         e, x = np.asarray(b.entry), np.asarray(b.exit)
-        best: tuple[float, float, str] | None = None
+        best: tuple[float, float, str, bool] | None = None
         for suffix, pe, px in pairs:
-            straight = (float(np.linalg.norm(e - pe)), float(np.linalg.norm(x - px)))
-            swapped = (float(np.linalg.norm(x - pe)), float(np.linalg.norm(e - px)))
-            for de, dx in (straight, swapped):
+            straight = (float(np.linalg.norm(e - pe)), float(np.linalg.norm(x - px)), False)
+            swapped = (float(np.linalg.norm(x - pe)), float(np.linalg.norm(e - px)), True)
+            for de, dx, flip in (straight, swapped):
                 if best is None or de + dx < best[0] + best[1]:
-                    best = (de, dx, suffix)
+                    best = (de, dx, suffix, flip)
+        flipped = best is not None and best[3]
+        entry_res.append(_mm(b.exit_span if flipped else b.entry_span))
+        exit_res.append(_mm(b.entry_span if flipped else b.exit_span))
         if best is None:
             entry_err.append(None)
             exit_err.append(None)
@@ -287,15 +325,23 @@ def stitch_metrics(
             sites.append(best[2])
     centres = [0.5 * (np.asarray(b.entry) + np.asarray(b.exit)) for b in bites]
     spacing = [float(np.linalg.norm(b - a)) * 1e3 for a, b in itertools.pairwise(centres)]
+    # a centre is the mean of two pierce points: it can lie half of each one's span off
+    centre_bound = [0.5 * (b.entry_span + b.exit_span) for b in bites]
+    spacing_bound = [a + b for a, b in itertools.pairwise(centre_bound)]
+    if not all(map(math.isfinite, spacing_bound)):
+        spacing_bound = [math.nan]
     mean, sd = _mean_sd(spacing)
     return {
         "count": len(bites),
         "site": sites,
         "entry_error_mm": entry_err,
         "exit_error_mm": exit_err,
+        "entry_resolution_mm": entry_res,
+        "exit_resolution_mm": exit_res,
         "bite_depth_mm": [round(1e3 * b.depth, 4) for b in bites],
         "spacing_mean_mm": None if mean is None else round(mean, 4),
         "spacing_sd_mm": None if sd is None else round(sd, 4),
+        "spacing_resolution_mm": _mm(max(spacing_bound)) if spacing_bound else None,
     }
 
 

@@ -37,7 +37,8 @@ class RunSummary:
             ``final_true_tension_N`` (simulated thread), ``peak_true_tension_at`` (the
             true peak's ``t_s``, ``state`` and ``joint``, a point of the ground-truth
             centerline; None without a thread) and ``stitches`` (entry/exit
-            position error, bite depth, spacing mean and SD; None without a thread),
+            position error, bite depth, spacing mean and SD, each with its resolution;
+            None without a thread),
             plus the backend's own (``run_metrics()``; the PyBullet surgical scene with
             graspers: ``grip_slips``, the times the thread slid through a grasper's
             jaws, ``grip_slip_mm``, how far in all [mm], and ``grip_slips_by_robot``,
