@@ -360,6 +360,40 @@ def test_the_printed_summary_gives_the_true_peak_with_when_and_where(
     assert "true tension peak" not in capsys.readouterr().out  # no thread simulated
 
 
+def test_the_printed_summary_gives_the_stitch_metrics_with_their_resolution(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    from types import SimpleNamespace
+
+    from suture_engine.runtime.cli_run import _print_summary
+
+    stitches = {
+        "count": 2,
+        "entry_error_mm": [2.52, 0.4],
+        "exit_error_mm": [None, 0.12],
+        "entry_resolution_mm": [3.49, 3.5],
+        "exit_resolution_mm": [3.5, 3.5],
+        "bite_depth_mm": [0.56, 0.81],
+        "spacing_mean_mm": 5.294,
+        "spacing_sd_mm": 0.282,
+        "spacing_resolution_mm": 6.9977,
+    }
+    _print_summary(SimpleNamespace(outcome="succeeded", metrics={"stitches": stitches}), None)
+    out = " ".join(capsys.readouterr().out.split())
+    assert (
+        "stitches (ground truth) 2 bites; entry/exit 0.12-2.52 mm from their points "
+        "(resolution 3.5 mm); depth 0.56-0.81 mm; spacing 5.29 ± 0.28 mm (resolution 7.0 mm)"
+    ) in out
+    one = {"count": 1, "entry_error_mm": [None], "exit_error_mm": [None], "bite_depth_mm": [0.5],
+           "spacing_mean_mm": None}  # fmt: skip
+    _print_summary(SimpleNamespace(outcome="succeeded", metrics={"stitches": one}), None)
+    assert "stitches (ground truth) 1 bite; depth 0.50 mm" in " ".join(
+        capsys.readouterr().out.split()
+    )
+    _print_summary(SimpleNamespace(outcome="succeeded", metrics={"stitches": {"count": 0}}), None)
+    assert "stitches" not in capsys.readouterr().out  # no bite: no row
+
+
 def test_the_threads_model_is_read_from_the_command_line_and_recorded(tmp_path: Path) -> None:
     from suture_engine.trace.reader import TraceReader
 

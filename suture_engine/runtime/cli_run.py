@@ -54,6 +54,37 @@ def _true_peak_row(s: object) -> list[tuple[str, str]]:
     return [("true tension peak (ground truth)", text)]
 
 
+def _span(values: list[float]) -> str:
+    lo, hi = min(values), max(values)
+    return f"{lo:.2f} mm" if hi - lo < 0.005 else f"{lo:.2f}-{hi:.2f} mm"
+
+
+def _stitches_row(s: object) -> list[tuple[str, str]]:
+    """The STAR-style stitch metrics (ground truth), each figure beside its resolution."""
+    m = (getattr(s, "metrics", None) or {}).get("stitches")
+    if not m or not m.get("count"):
+        return []
+    parts = [f"{m['count']} bite{'s' if m['count'] != 1 else ''}"]
+    errors = [
+        e for e in (m.get("entry_error_mm") or []) + (m.get("exit_error_mm") or []) if e is not None
+    ]
+    res = [
+        r
+        for r in (m.get("entry_resolution_mm") or []) + (m.get("exit_resolution_mm") or [])
+        if r is not None
+    ]
+    if errors:
+        text = f"entry/exit {_span(errors)} from their points"
+        parts.append(text + (f" (resolution {max(res):.1f} mm)" if res else ""))
+    if m.get("bite_depth_mm"):
+        parts.append(f"depth {_span(m['bite_depth_mm'])}")
+    if m.get("spacing_mean_mm") is not None:
+        text = f"spacing {m['spacing_mean_mm']:.2f} ± {m['spacing_sd_mm']:.2f} mm"
+        bound = m.get("spacing_resolution_mm")
+        parts.append(text + (f" (resolution {bound:.1f} mm)" if bound is not None else ""))
+    return [("stitches (ground truth)", "; ".join(parts))]
+
+
 def _print_summary(summary: object, out_dir: Path | None) -> None:
     from rich.console import Console
     from rich.table import Table
@@ -84,6 +115,7 @@ def _print_summary(summary: object, out_dir: Path | None) -> None:
         rows.append(("knots (ground truth)", types))
     else:
         rows.append(("knot", "not checked: this backend simulates no thread"))
+    rows.extend(_stitches_row(s))
     fault = getattr(s, "last_fault", None)
     if fault and getattr(s, "outcome", "") != "succeeded":
         rows.append(("last fault", f"{fault['step']} at {fault['t_s']:.3f} s: {fault['reason']}"))
