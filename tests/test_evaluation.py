@@ -134,6 +134,12 @@ def _parabola_bite(step: float, offset: float) -> tuple[np.ndarray, float]:
     return np.c_[np.zeros_like(y), y, -2 * MM + y**2 / (4 * MM)], math.sqrt(8) * MM
 
 
+def _sample_gap(pts: np.ndarray, y: float) -> float:
+    """The distance between the two samples either side of y (the samples run along +y)."""
+    k = int(np.searchsorted(pts[:, 1], y))
+    return float(np.linalg.norm(pts[k] - pts[k - 1]))
+
+
 def test_each_pierce_point_states_its_resolution_and_the_thread_crosses_within_it() -> None:
     # oracle: the parabola's own crossings; the spans, from the samples either side
     for step in (3.5 * MM, 1.0 * MM, 0.25 * MM):
@@ -143,8 +149,7 @@ def test_each_pierce_point_states_its_resolution_and_the_thread_crosses_within_i
             (bite.entry, bite.entry_span, -y0),
             (bite.exit, bite.exit_span, y0),
         ):
-            k = int(np.searchsorted(pts[:, 1], y_true))  # the samples either side: k-1, k
-            assert span == pytest.approx(float(np.linalg.norm(pts[k] - pts[k - 1])), rel=1e-12)
+            assert span == pytest.approx(_sample_gap(pts, y_true), rel=1e-12)
             error = float(np.linalg.norm(np.asarray(pierce) - (0.0, y_true, 0.0)))
             assert 0.0 < error < span
         m = stitch_metrics([bite], {"entry": (0.0, -y0, 0.0), "exit": (0.0, y0, 0.0)})
@@ -180,7 +185,9 @@ def test_the_spacings_resolution_sums_half_of_each_pierce_points_span() -> None:
     bites = find_bites(np.vstack([a, hop, b + np.array([5 * MM, 0.0, 0.0])]), SURFACE, NORMAL)
     assert len(bites) == 2
     m = stitch_metrics(bites)
-    bound = sum(0.5 * (x.entry_span + x.exit_span) for x in bites)
+    # half of each pierce point's sample gap, read from the two samplings themselves
+    y0 = math.sqrt(8) * MM
+    bound = sum(0.5 * (_sample_gap(pts, -y0) + _sample_gap(pts, y0)) for pts in (a, b))
     assert m["spacing_resolution_mm"] == pytest.approx(1e3 * bound, abs=1e-4)
     # oracle: the two parabolas' centres lie 5 mm apart; the sampled ones a little off it
     assert 0.0 < abs(m["spacing_mean_mm"] - 5.0) < m["spacing_resolution_mm"]

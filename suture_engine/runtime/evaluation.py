@@ -328,8 +328,10 @@ def stitch_metrics(
     # a centre is the mean of two pierce points: it can lie half of each one's span off
     centre_bound = [0.5 * (b.entry_span + b.exit_span) for b in bites]
     spacing_bound = [a + b for a, b in itertools.pairwise(centre_bound)]
+    # NaN (a span not known) makes max() order-dependent: no bound then
+    worst = max(spacing_bound, default=math.nan)
     if not all(map(math.isfinite, spacing_bound)):
-        spacing_bound = [math.nan]
+        worst = math.nan
     mean, sd = _mean_sd(spacing)
     return {
         "count": len(bites),
@@ -341,7 +343,7 @@ def stitch_metrics(
         "bite_depth_mm": [round(1e3 * b.depth, 4) for b in bites],
         "spacing_mean_mm": None if mean is None else round(mean, 4),
         "spacing_sd_mm": None if sd is None else round(sd, 4),
-        "spacing_resolution_mm": _mm(max(spacing_bound)) if spacing_bound else None,
+        "spacing_resolution_mm": _mm(worst) if spacing_bound else None,
     }
 
 
