@@ -32,17 +32,36 @@ def test_bundled_procedures_validate() -> None:
     assert result.stdout.count(": valid") == len(BUNDLED)
 
 
-def test_a_state_turned_off_by_when_is_not_checked_against_the_scenes_tools() -> None:
-    """The interrupted suture by algorithm 3 runs on the bent-tip bench, where the
-    secure-knot states (algorithm 2's hook and stitcher) are turned off: valid. Turned on
-    (``secure=true``) they are checked, and their tools do not match the scene."""
-    off = _suture("validate", "--set", "algorithm=3", "procedures/interrupted-suture.yaml")
+def test_a_state_turned_off_by_when_is_not_checked_against_the_scenes_tools(
+    tmp_path: Path,
+) -> None:
+    """The interrupted suture by algorithm 3 (its default) runs on the bent-tip bench,
+    where the secure-knot states (algorithm 2's hook and stitcher) are turned off: valid.
+    A state turned on by its ``when:`` is checked, and its tools do not match the scene;
+    the interrupted suture's own ``secure`` refuses that earlier (``requires``), so this
+    uses a file of its own."""
+    off = _suture("validate", "procedures/interrupted-suture.yaml")
     assert off.returncode == 0, off.stdout + off.stderr
-    on = _suture(
-        "validate", "--set", "algorithm=3", "--set", "secure=true",
-        "procedures/interrupted-suture.yaml",
-    )  # fmt: skip
-    assert on.returncode != 0 and "tool-mismatch" in on.stdout, on.stdout + on.stderr
+    procedures = ROOT / "procedures"
+    path = tmp_path / "secure-on-bent-tip.yaml"
+    path.write_text(
+        "procedure: secure-on-bent-tip\n"
+        f"scene: {procedures / 'scenes' / 'bench-bent-tip-posts.yaml'}\n"
+        "backend: pybullet-surgical-stitched\n"
+        "params: {secure: {type: bool, default: false}}\n"
+        "roles: {stitcher: endobot_1, grasper: endobot_2}\n"
+        "initial: knot\n"
+        "states:\n"
+        f"  knot: {{when: '${{secure}}', use: {procedures / 'secure-knot.yaml'},\n"
+        "         with: {entry: entry_2, exit: exit_2, site: knot_2}, on: {done: closed}}\n"
+        "  closed: {outcome: succeeded}\n"
+    )
+    for secure, valid in (("false", True), ("true", False)):
+        result = _suture(
+            "validate", "--allow-outside", "--set", f"secure={secure}", str(path)
+        )  # fmt: skip
+        assert (result.returncode == 0) is valid, result.stdout + result.stderr
+        assert ("tool-mismatch" in result.stdout) is not valid, result.stdout
 
 
 def test_json_output_of_a_valid_file_is_an_empty_list() -> None:

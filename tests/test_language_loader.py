@@ -153,8 +153,10 @@ def test_interrupted_suture_by_algorithm_3_registers_once_on_its_bench() -> None
         assert not plan.steps[f"knot-{k}.register"].enabled
         # posts in the scene, but taken away before: the holder goes straight up
         assert not plan.steps[f"knot-{k}.mirrored-knot.clear-post"].enabled
-    # algorithm 2 (the default) keeps its bench and registers nowhere
-    two = compile_procedure(load_procedure(PROCEDURES / "interrupted-suture.yaml"))
+    # algorithm 2 keeps its bench and registers nowhere
+    two = compile_procedure(
+        load_procedure(PROCEDURES / "interrupted-suture.yaml", params={"algorithm": 2})
+    )
     assert not any(
         name.endswith("remove-posts") and step.enabled for name, step in two.steps.items()
     )
@@ -179,7 +181,8 @@ def test_interrupted_suture_by_algorithm_3_holds_every_tail_grasp_until_the_jaws
     throws = ("simple-knot", "mirrored-knot")
     assert set(three) == {f"knot-{k}.{t}.grab-tail" for k in (1, 2, 3) for t in throws}
     assert sorted(three.values()) == pytest.approx([0.2] * 6)
-    assert set(dwells({}).values()) == {0.0}
+    assert set(dwells({"algorithm": 2}).values()) == {0.0}
+    assert dwells({}) == three  # algorithm 3 is the default
     assert set(dwells({"algorithm": 3, "grab_dwell": "0 s"}).values()) == {0.0}
 
 
@@ -304,6 +307,89 @@ def test_a_bad_default_expression_is_one_problem_at_the_default(
     assert [(p.code, p.path.rsplit(".", 1)[-1]) for p in problems] == [(code, "default")], problems
     assert says in problems[0].message
     assert problems[0].line == 5  # the first parameter after `algorithm`, the one at fault
+
+
+def test_a_requirement_over_the_parameters_is_one_problem_where_the_value_was_set(
+    tmp_path: Path,
+) -> None:
+    """``requires: ${...}`` must hold over the parameter and those before it. Broken by a
+    value the caller set, it is reported at that value (the override, or a ``use:``'s
+    ``with``); broken by a default, at the ``requires`` (line 5)."""
+    path = _defaults_file(
+        tmp_path,
+        "  hook: {type: bool, default: false, requires: '${not hook or algorithm == 2}',\n"
+        "         description: algorithm 2's hook}\n",
+    )
+    for given in ({}, {"hook": True}, {"algorithm": 2, "hook": True}, {"algorithm": 3}):
+        assert load(path, params=given, allow_outside=True).problems == [], given
+    for given, setter in (
+        ({"algorithm": 3, "hook": True}, "hook"),
+        ({"hook": True, "algorithm": 1}, "hook"),
+    ):
+        (problem,) = load(path, params=given, allow_outside=True).problems
+        assert problem.code == "unmet-requirement"
+        assert problem.message.startswith("(override)")
+        assert f"here algorithm={given['algorithm']}, hook=true" in problem.message
+        assert problem.message.endswith("algorithm 2's hook")
+        assert problem.path.endswith(setter)
+    # a use:'s with is a caller too: reported at its value, in the calling file
+    parent = tmp_path / "parent.yaml"
+    parent.write_text(
+        "procedure: parent\n"
+        f"scene: {PROCEDURES / 'scenes' / 'bench.yaml'}\n"
+        "initial: sub\n"
+        "states:\n"
+        "  sub: {use: defaults.yaml, with: {algorithm: 3, hook: true}, on: {done: end}}\n"
+        "  end: {outcome: succeeded}\n"
+    )
+    (problem,) = load(parent, allow_outside=True).problems
+    assert problem.code == "unmet-requirement" and problem.file.endswith("parent.yaml")
+    assert problem.line == 5 and problem.path.endswith("with.hook"), problem
+    # the default breaks it once algorithm is set: reported at the algorithm the caller set
+    defaulted = _defaults_file(
+        tmp_path, "  hook: {type: bool, default: true, requires: '${not hook or algorithm == 2}'}\n"
+    )
+    (problem,) = load(defaulted, params={"algorithm": 3}, allow_outside=True).problems
+    assert problem.code == "unmet-requirement" and problem.path.endswith("algorithm")
+    # and by the file alone: at the requirement itself
+    alone = _defaults_file(
+        tmp_path, "  hook: {type: bool, default: true, requires: '${not hook or algorithm == 3}'}\n"
+    )
+    (problem,) = load(alone, allow_outside=True).problems
+    assert (problem.code, problem.path, problem.line) == (
+        "unmet-requirement", "params.hook.requires", 5,
+    )  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    ("requires", "says"),
+    [
+        ("hook", "must be one `${...}` condition"),
+        ("${later > 1}", "'later', declared after it"),
+        ("${algorithm}", "gives 2, not true or false"),
+        ("${nope}", "unknown name 'nope'"),
+    ],
+)
+def test_a_bad_requirement_is_a_problem_at_the_requirement(
+    tmp_path: Path, requires: str, says: str
+) -> None:
+    path = _defaults_file(
+        tmp_path,
+        f"  hook: {{type: bool, default: false, requires: '{requires}'}}\n"
+        "  later: {type: int, default: 1}\n",
+    )
+    (problem,) = load(path, allow_outside=True).problems
+    assert (problem.code, problem.path) == ("bad-expression", "params.hook.requires"), problem
+    assert says in problem.message
+
+
+def test_the_interrupted_suture_secures_only_on_algorithm_2s_tools() -> None:
+    """``secure`` ties with secure-knot.yaml, on algorithm 2's hook and stitcher: with the
+    default algorithm 3 it is one problem at the override, not the tools' mismatches."""
+    path = PROCEDURES / "interrupted-suture.yaml"
+    (problem,) = load(path, params={"secure": True}).problems
+    assert problem.code == "unmet-requirement" and "algorithm=3, secure=true" in problem.message
+    assert load(path, params={"secure": True, "algorithm": 2}).problems == []
 
 
 @pytest.mark.parametrize(("scene", "posts"), [("bench.yaml", 0), ("bench-posts.yaml", 4)])

@@ -395,6 +395,68 @@ def _default_from_expression(
     return _resolve(ctx, raw, source, where, names)
 
 
+def _check_requires(
+    ctx: _Context,
+    head: _Head,
+    source: SourceMap,
+    binding: _Binding | None,
+    name: str,
+    values: Mapping[str, Any],
+) -> bool:
+    """A parameter's ``requires``: evaluated over it and the parameters declared before it.
+
+    Broken, it is reported where the caller set this parameter, else where the caller set
+    one the condition names, else at this parameter's ``requires``. Returns whether the
+    value stands (a condition that cannot be evaluated is reported and fails it too).
+    """
+    raw = head.params[name].requires
+    where: PathKey = ("params", name, "requires")
+    if not isinstance(raw, str) or find_expression(raw) is None:
+        reason = f"`requires` must be one `${{...}}` condition, got {raw!r}"
+        ctx.problems.append(source.problem("bad-expression", reason, where))
+        return False
+    order = list(head.params)
+    known = order[: order.index(name) + 1]
+    later = [k for k in order[len(known) :] if _mentions(raw, k)]
+    if later:
+        reason = (
+            f"{name!r} requires {raw!r}, which uses {later[0]!r}, declared after it; "
+            "a condition may use only this parameter and those declared before it"
+        )
+        ctx.problems.append(source.problem("bad-expression", reason, where))
+        return False
+    names: dict[str, Any] = {k: values.get(k, _INVALID) for k in known}
+    met = _resolve(ctx, raw, source, where, names)
+    if met is True:
+        return True
+    if isinstance(met, InvalidValue):
+        return False
+    if met is not False:
+        reason = f"{name!r} requires {raw!r}, which gives {met!r}, not true or false"
+        ctx.problems.append(source.problem("bad-expression", reason, where))
+        return False
+    used = [k for k in known if _mentions(raw, k)]
+    shown = ", ".join(f"{k}={_show_yaml(values[k])}" for k in used if k in values)
+    reason = f"parameter {name!r} requires {raw} (here {shown})"
+    description = head.params[name].description
+    if description:
+        reason += f": {description}"
+    bound = binding.values if binding is not None else {}
+    setter = next((k for k in (name, *used) if k in bound), None)
+    if binding is not None and setter is not None:
+        ctx.problems.append(binding.locate("unmet-requirement", reason, setter))
+    else:
+        ctx.problems.append(source.problem("unmet-requirement", reason, where))
+    return False
+
+
+def _show_yaml(value: Any) -> str:
+    """A value as it would be written in YAML (``true``, ``3``, ``2 mm``)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    return str(value) if isinstance(value, (Quantity, int, float, str)) else repr(value)
+
+
 def _resolve_params(
     ctx: _Context, head: _Head, source: SourceMap, binding: _Binding | None
 ) -> dict[str, Any]:
@@ -468,6 +530,10 @@ def _resolve_params(
             code, reason = "bad-param", str(exc)
         if not code:
             values[name] = value
+            if spec.requires is not None and not _check_requires(
+                ctx, head, source, binding, name, values
+            ):
+                del values[name]  # reported: what depends on it is not checked again
         elif from_caller and binding is not None:
             add(binding.locate(code, f"parameter {name!r}: {reason}", name))
         else:

@@ -84,6 +84,10 @@ class ParamSpec(_Model):
     """Inclusive upper bound."""
     choices: list[Any] | None = None
     """Allowed values."""
+    requires: str | None = None
+    """A condition the value must meet together with the parameters declared before it,
+    written ``${...}`` (``${not secure or algorithm == 2}``): a value that breaks it is a
+    problem where it was set (``--set``, a ``use:``'s ``with``, or the default)."""
     description: str = ""
     """Free text."""
 
