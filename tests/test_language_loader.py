@@ -365,7 +365,7 @@ def test_a_requirement_over_the_parameters_is_one_problem_where_the_value_was_se
     ("requires", "says"),
     [
         ("hook", "must be one `${...}` condition"),
-        ("${later > 1}", "'later', declared after it"),
+        ("${later > 1}", "'later', which is not declared before it"),
         ("${algorithm}", "gives 2, not true or false"),
         ("${nope}", "unknown name 'nope'"),
     ],

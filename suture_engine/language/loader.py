@@ -365,6 +365,40 @@ def _mentions(text: str, name: str) -> bool:
     return re.search(rf"(?<![\w.]){re.escape(name)}(?!\w)", text) is not None
 
 
+def _usable_names(
+    ctx: _Context,
+    source: SourceMap,
+    where: PathKey,
+    head: _Head,
+    name: str,
+    raw: str,
+    values: Mapping[str, Any],
+    *,
+    own: bool,
+) -> dict[str, Any] | None:
+    """What an expression of parameter ``name`` may use, or None (reported) if it names
+    a parameter declared after it.
+
+    The parameters resolve in the order they are written: a default (``own`` false) sees
+    those declared before ``name``, a ``requires`` (``own`` true) ``name`` too; one whose
+    value was refused is seen as invalid.
+    """
+    order = list(head.params)
+    cut = order.index(name) + (1 if own else 0)
+    later = next((k for k in order[cut:] if _mentions(raw, k)), None)
+    if later is not None:
+        what, which = (
+            ("condition", "its parameter and those") if own else ("default", "the parameters")
+        )
+        reason = (
+            f"the {what} {raw!r} uses {later!r}, which is not declared before it; "
+            f"a {what} may use only {which} declared before it"
+        )
+        ctx.problems.append(source.problem("bad-expression", reason, where))
+        return None
+    return {k: values.get(k, _INVALID) for k in order[:cut]}
+
+
 def _default_from_expression(
     ctx: _Context,
     source: SourceMap,
@@ -379,18 +413,10 @@ def _default_from_expression(
     order they are written. One declared before whose value was refused (and reported)
     leaves the default invalid, silently.
     """
-    order = list(head.params)
-    before = order[: order.index(name)]
     where: PathKey = ("params", name, "default")
-    later = [k for k in order[len(before) :] if _mentions(raw, k)]
-    if later:
-        reason = (
-            f"the default {raw!r} uses {later[0]!r}, which is not declared before it; "
-            "a default may use only the parameters declared before it"
-        )
-        ctx.problems.append(source.problem("bad-expression", reason, where))
+    names = _usable_names(ctx, source, where, head, name, raw, values, own=False)
+    if names is None:
         return _INVALID
-    names: dict[str, Any] = {k: values.get(k, _INVALID) for k in before}
     names["params"] = Namespace("params", dict(values))
     return _resolve(ctx, raw, source, where, names)
 
@@ -415,17 +441,9 @@ def _check_requires(
         reason = f"`requires` must be one `${{...}}` condition, got {raw!r}"
         ctx.problems.append(source.problem("bad-expression", reason, where))
         return False
-    order = list(head.params)
-    known = order[: order.index(name) + 1]
-    later = [k for k in order[len(known) :] if _mentions(raw, k)]
-    if later:
-        reason = (
-            f"{name!r} requires {raw!r}, which uses {later[0]!r}, declared after it; "
-            "a condition may use only this parameter and those declared before it"
-        )
-        ctx.problems.append(source.problem("bad-expression", reason, where))
+    names = _usable_names(ctx, source, where, head, name, raw, values, own=True)
+    if names is None:
         return False
-    names: dict[str, Any] = {k: values.get(k, _INVALID) for k in known}
     met = _resolve(ctx, raw, source, where, names)
     if met is True:
         return True
@@ -435,7 +453,7 @@ def _check_requires(
         reason = f"{name!r} requires {raw!r}, which gives {met!r}, not true or false"
         ctx.problems.append(source.problem("bad-expression", reason, where))
         return False
-    used = [k for k in known if _mentions(raw, k)]
+    used = [k for k in names if _mentions(raw, k)]
     shown = ", ".join(f"{k}={_show_yaml(values[k])}" for k in used if k in values)
     reason = f"parameter {name!r} requires {raw} (here {shown})"
     description = head.params[name].description
