@@ -86,8 +86,9 @@ class ParamSpec(_Model):
     """Allowed values."""
     requires: str | None = None
     """A condition the value must meet together with the parameters declared before it,
-    written ``${...}`` (``${not secure or algorithm == 2}``): a value that breaks it is a
-    problem where it was set (``--set``, a ``use:``'s ``with``, or the default)."""
+    written ``${...}`` (``${not secure or algorithm == 2}``). Broken, it is one problem
+    where the caller set this value or one the condition names (``--set``, a ``use:``'s
+    ``with``), else at the ``requires`` itself."""
     description: str = ""
     """Free text."""
 
